@@ -1,0 +1,33 @@
+# Two commands for a fresh machine:  `make run`  and  `make test`.
+PYTHON ?= python3
+VENV   ?= .venv
+PY      = $(VENV)/bin/python
+STAMP   = $(VENV)/.installed
+
+.PHONY: run test test-slow validate bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e ".[test]"
+	touch $(STAMP)
+
+# The main job: simulate the flagship case, write HDF5 + XDMF + a plot against experiment.
+run: $(STAMP)
+	$(VENV)/bin/fpsi run dam_break --out results/dam_break.h5 --plot
+
+# The default test suite (long validation runs are marked slow and run in experiments/).
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+test-slow: $(STAMP)
+	$(PY) -m pytest -q -m slow
+
+validate: $(STAMP)
+	$(VENV)/bin/fpsi validate
+
+bench: $(STAMP)
+	$(PY) experiments/bench_sph.py
+
+clean:
+	rm -rf $(VENV) results .pytest_cache

@@ -1,0 +1,34 @@
+"""Scene builders: one per validation case, physical parameters as keyword arguments."""
+from __future__ import annotations
+
+import inspect
+
+from ..params import ParameterError
+from .dam_break import dam_break
+from .hydrostatic_tank import hydrostatic_tank
+
+SCENES = {
+    "hydrostatic_tank": hydrostatic_tank,
+    "dam_break": dam_break,
+}
+
+
+def builder_keys(name: str) -> list[str]:
+    return list(inspect.signature(get(name)).parameters)
+
+
+def get(name: str):
+    try:
+        return SCENES[name]
+    except KeyError:
+        raise ParameterError(f"unknown scene {name!r}; available: {', '.join(SCENES)}") from None
+
+
+def build(name: str, **kwargs):
+    fn = get(name)
+    keys = builder_keys(name)
+    bad = [k for k in kwargs if k not in keys]
+    if bad:
+        raise ParameterError(f"scene {name!r} has no parameter {bad[0]!r}; allowed: "
+                             f"{', '.join(keys)}")
+    return fn(**kwargs).validate()

@@ -1,0 +1,188 @@
+"""Weakly compressible SPH fluid (physics.md §SPH: W41–W46, K28–K39).
+
+Pure functions of arrays. The pair sums use jax-md's Dense neighbour format: ``idx`` has one
+row per *fluid* particle and holds indices into the concatenation [fluid; boundary]; the
+padding index is n_fluid + n_boundary, which points at a dummy particle placed far away so
+every kernel term of a padded slot is exactly zero.
+
+Notation: x_ij = x_i − x_j, v_ij = v_i − v_j, h_ij = (h_i + h_j)/2 (K37: symmetric pairs),
+∇_i W_ij = x_ij F_ij with F = (1/r) dW/dr (see ``kernels``). Each pair term is antisymmetric
+in (i, j), so the pressure and viscous forces obey Newton's third law and the total momentum
+of the fluid is conserved to round-off.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from . import kernels
+
+FAR = 1.0e6  # position of the padding particle: farther than any cut-off
+
+
+def eos_pressure(rho, rho0, c0, gamma):
+    """Tait equation of state (W46, K35): P = B((ρ/ρ0)^γ − 1), B = c0²ρ0/γ."""
+    b = c0 * c0 * rho0 / gamma
+    return b * ((rho / rho0) ** gamma - 1.0)
+
+
+def eos_density(p, rho0, c0, gamma):
+    """Inverse of the Tait EOS: ρ = ρ0 (1 + P/B)^(1/γ)."""
+    b = c0 * c0 * rho0 / gamma
+    return rho0 * jnp.maximum(1.0 + p / b, 1e-6) ** (1.0 / gamma)
+
+
+class Pairs(NamedTuple):
+    """Geometry and kinematics of the (row, neighbour-slot) pairs of one list, shared by the
+    density pass and the momentum pass of a step."""
+
+    idx: jax.Array      # (n_rows, K) neighbour indices, padding = N
+    fluid_j: jax.Array  # (n_rows, K) neighbour is a fluid particle
+    dx: jax.Array       # x_ij (n_rows, K, 2)
+    r2: jax.Array       # |x_ij|²
+    hij: jax.Array      # (h_i + h_j)/2
+    w: jax.Array        # W_ij
+    f: jax.Array        # F_ij = (1/r) dW/dr, so ∇_iW_ij = x_ij F_ij
+    vij: jax.Array      # v_ij (n_rows, K, 2)
+    m_j: jax.Array      # m_j
+    rho_j: jax.Array    # ρ_j at the start of the step (for the volumes m_j/ρ_j)
+
+
+def gather(a, idx, fill=1.0):
+    """a[idx] with the padding index N mapped to ``fill`` (a may be (N,) or (N, c))."""
+    pad = jnp.full((1,) + a.shape[1:], fill, a.dtype)
+    return jnp.concatenate([a, pad], axis=0)[idx]
+
+
+def pairs(kern, n_fluid, x, v, h, m, rho, idx) -> Pairs:
+    """Pair geometry for the rows ``idx`` (the first idx.shape[0] particles of x). One packed
+    gather of [x, y, vx, vy, h, m, ρ]; the padding row sits far away so W = F = 0 there."""
+    rows = idx.shape[0]
+    table = jnp.concatenate([x, v, h[:, None], m[:, None], rho[:, None]], axis=1)
+    dummy = jnp.array([FAR, FAR, 0.0, 0.0, 1.0, 1.0, 1.0], dtype=table.dtype)[None]
+    nbr = jnp.concatenate([table, dummy], axis=0)[idx]   # (rows, K, 7)
+    dx = x[:rows, None, :] - nbr[..., 0:2]
+    r2 = jnp.sum(dx * dx, axis=-1)
+    hij = 0.5 * (h[:rows, None] + nbr[..., 4])
+    w = kern.w(jnp.sqrt(r2), hij)
+    f = kern.grad_factor(r2, hij)
+    vij = v[:rows, None, :] - nbr[..., 2:4]
+    return Pairs(idx, idx < n_fluid, dx, r2, hij, w, f, vij, nbr[..., 5], nbr[..., 6])
+
+
+def continuity(rho_i, pr: Pairs):
+    """Dρ_i/Dt = ρ_i Σ_j (m_j/ρ_j) v_ij·∇_iW_ij (K32)."""
+    vdotx_f = jnp.sum(pr.vij * pr.dx, axis=-1) * pr.f
+    return rho_i * jnp.sum(pr.m_j / pr.rho_j * vdotx_f, axis=1)
+
+
+def delta_diffusion(delta, c0, rho_i, pr: Pairs):
+    """δ-SPH (Molteni & Colagrossi 2009): δ h c0 Σ_j ψ_ij·∇_iW_ij V_j,
+    ψ_ij = 2(ρ_j − ρ_i) x_ji/(r² + 0.01h²); applied to fluid–fluid pairs only."""
+    s = (2.0 * (pr.rho_j - rho_i[:, None]) * (-pr.r2 * pr.f)
+         / (pr.r2 + 0.01 * pr.hij ** 2) * pr.m_j / pr.rho_j)
+    return delta * c0 * jnp.sum(jnp.where(pr.fluid_j, pr.hij * s, 0.0), axis=1)
+
+
+def pressure_acc(m_j, coef, dx, f):
+    """−Σ_j m_j (P_i/ρ_i² + P_j/ρ_j² + R_ij) ∇_iW_ij (W43, K34); ``coef`` is the bracket."""
+    return -jnp.sum((m_j * coef * f)[..., None] * dx, axis=1)
+
+
+def viscous_acc(mu_i, mu_j, rho_i, rho_j, pr: Pairs):
+    """Morris viscosity (K36): Σ_j m_j (μ_i+μ_j) v_ij (x_ij·∇_iW_ij)/(ρ_iρ_j(r²+0.01h²))."""
+    s = (pr.m_j * (mu_i + mu_j) * pr.r2 * pr.f
+         / (rho_i[:, None] * rho_j * (pr.r2 + 0.01 * pr.hij ** 2)))
+    return jnp.sum(s[..., None] * pr.vij, axis=1)
+
+
+def artificial_viscosity(alpha, c0, rho_i, rho_j, pr: Pairs):
+    """Monaghan (1992) artificial viscosity, the option DualSPHysics users know:
+    −Σ_j m_j Π_ij ∇_iW_ij, Π_ij = −α c0 μ_ij/ρ̄_ij for approaching pairs (v_ij·x_ij < 0),
+    μ_ij = h_ij v_ij·x_ij/(r² + 0.01h²). Not in the seeds; off unless Physics says so."""
+    vx = jnp.sum(pr.vij * pr.dx, axis=-1)
+    mu_ij = pr.hij * jnp.minimum(vx, 0.0) / (pr.r2 + 0.01 * pr.hij ** 2)
+    pi_ij = -alpha * c0 * mu_ij / (0.5 * (rho_i[:, None] + rho_j))
+    return -jnp.sum((pr.m_j * pi_ij * pr.f)[..., None] * pr.dx, axis=1)
+
+
+def anticlump(r, p_i, rho_i, p_j, rho_j, w, w_dp):
+    """R_ij = r (|P_i|/ρ_i² + |P_j|/ρ_j²) (W_ij/W(Δp))⁴ (W45, K38; Monaghan 2000)."""
+    base = jnp.abs(p_i / rho_i ** 2)[:, None] + jnp.abs(p_j / rho_j ** 2)
+    return r * base * (w / w_dp) ** 4
+
+
+def xsph_correction(eps, rho_i, rho_j, pr: Pairs):
+    """XSPH (K39, Monaghan 1989): −ε Σ_j (m_j/ρ̄_ij) v_ij W_ij, ρ̄_ij = (ρ_i+ρ_j)/2."""
+    s = pr.m_j * pr.w / (0.5 * (rho_i[:, None] + rho_j))
+    return -eps * jnp.sum(s[..., None] * pr.vij, axis=1)
+
+
+def smoothing_length_rate(h, rho, drho, n_d=2.0):
+    """Dh/Dt = −h/(n_d ρ) Dρ/Dt (K37), n_d = 2 in 2D."""
+    return -h / (n_d * rho) * drho
+
+
+def density_rate(phys, sp, rho_i, pr: Pairs):
+    """Dρ/Dt of the fluid rows: continuity (K32) plus δ-SPH diffusion when switched on."""
+    with jax.named_scope("sph.continuity"):
+        drho = continuity(rho_i, pr)
+    if phys.delta_sph:
+        with jax.named_scope("sph.delta"):
+            drho = drho + delta_diffusion(sp.delta, sp.c0, rho_i, pr)
+    return drho
+
+
+def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs):
+    """dv/dt (pressure with anti-clump, Morris viscosity, gravity; W43, K34–K38) and the
+    XSPH correction of the fluid rows. ``rho``/``p`` cover all particles (fluid, boundary)
+    at the new time level."""
+    rows = pr.idx.shape[0]
+    rho_i, p_i = rho[:rows], p[:rows]
+    rp = gather(jnp.stack([rho, p], axis=1), pr.idx)   # second (small) gather: new ρ, P
+    rho_j, p_j = rp[..., 0], rp[..., 1]
+    with jax.named_scope("sph.pressure"):
+        coef = (p_i / rho_i ** 2)[:, None] + p_j / rho_j ** 2
+        if phys.anticlump:
+            with jax.named_scope("sph.anticlump"):
+                r_ij = anticlump(sp.r_clump, p_i, rho_i, p_j, rho_j, pr.w,
+                                 kern.w(sp.dp, pr.hij))
+                if not phys.anticlump_boundary:
+                    r_ij = jnp.where(pr.fluid_j, r_ij, 0.0)
+                coef = coef + r_ij
+        acc = pressure_acc(pr.m_j, coef, pr.dx, pr.f)
+    with jax.named_scope("sph.viscosity"):
+        acc = acc + viscous_acc(sp.mu, sp.mu, rho_i, rho_j, pr)
+    if phys.artificial_viscosity:
+        with jax.named_scope("sph.artificial_viscosity"):
+            acc = acc + artificial_viscosity(sp.alpha, sp.c0, rho_i, rho_j, pr)
+    acc = acc + gravity
+    if phys.xsph:
+        with jax.named_scope("sph.xsph"):
+            xs = xsph_correction(sp.eps_xsph, rho_i, rho_j, pr)
+    else:
+        xs = jnp.zeros_like(acc)
+    return acc, xs
+
+
+def extrapolated_boundary_pressure(n_fluid, kern, sp, gravity, x, h, rho, p, idx_b,
+                                   acc_b=None):
+    """Boundary pressure from the fluid (Adami, Hu & Adams 2012, Eq. 27):
+    P_b = (Σ_f P_f W_bf + (g − a_b)·Σ_f ρ_f x_bf W_bf) / Σ_f W_bf, clamped at P ≥ 0 so a
+    wall never pulls the fluid; ρ_b from the inverted EOS. Rows without fluid get P = 0.
+    ``x, h, rho, p`` cover all particles; ``idx_b`` is the (n_b, K) list of boundary rows."""
+    xb, hb = x[n_fluid:], h[n_fluid:]
+    nbr = gather(jnp.concatenate([x, h[:, None], rho[:, None], p[:, None]], axis=1), idx_b,
+                 fill=FAR)
+    dx = xb[:, None, :] - nbr[..., 0:2]
+    r = jnp.sqrt(jnp.sum(dx * dx, axis=-1))
+    w = jnp.where(idx_b < n_fluid, kern.w(r, 0.5 * (hb[:, None] + nbr[..., 2])), 0.0)
+    ab = jnp.zeros_like(xb) if acc_b is None else acc_b
+    g_minus_a = gravity[None, :] - ab
+    num = jnp.sum(w * nbr[..., 4], axis=1) + jnp.sum(
+        g_minus_a * jnp.sum((w * nbr[..., 3])[..., None] * dx, axis=1), axis=-1)
+    den = jnp.sum(w, axis=1)
+    pb = jnp.maximum(jnp.where(den > 0, num / jnp.where(den > 0, den, 1.0), 0.0), 0.0)
+    return pb, eos_density(pb, sp.rho0, sp.c0, sp.gamma)

@@ -1,0 +1,84 @@
+"""The dynamic state of a run: a pytree split by phase (absent phases are ``None``)."""
+from __future__ import annotations
+
+from typing import Any
+
+import jax.numpy as jnp
+
+from .tree import pytree_dataclass
+
+
+@pytree_dataclass
+class FluidState:
+    """SPH fluid: positions, velocities, densities, smoothing lengths, masses and the
+    acceleration and XSPH correction of the last evaluation (the leapfrog's first kick)."""
+
+    x: Any
+    v: Any
+    rho: Any
+    h: Any
+    mass: Any
+    acc: Any
+    xsph: Any
+
+
+@pytree_dataclass
+class BoundaryState:
+    """Fixed SPH boundary particles (≥ 2 layers). ``p``/``rho`` are constant in the 'fixed'
+    mode (W5, K5 method 1) and re-extrapolated every step in the 'extrapolated' mode."""
+
+    x: Any
+    rho: Any
+    p: Any
+    h: Any
+    mass: Any
+
+
+# Status codes: what went wrong first, for the host's error message.
+STATUS_CODES = {
+    0: "ok",
+    1: "position is not finite",
+    2: "velocity is not finite",
+    3: "density is not finite",
+    4: "density left the allowed band |rho/rho0 - 1| <= rho_tolerance",
+    5: "particle left the domain",
+}
+
+
+@pytree_dataclass
+class Status:
+    """Health of a rollout, updated every step inside the scan.
+
+    bad/step/particle/code  first step where a particle went bad, and which one and why
+    overflow                the neighbour list overflowed (the chunk must be redone)
+    h_exceeded              a smoothing length outgrew the neighbour cut-off (redo)
+    rebuilds                number of neighbour-list rebuilds so far
+    """
+
+    bad: Any
+    step: Any
+    particle: Any
+    code: Any
+    overflow: Any
+    h_exceeded: Any
+    rebuilds: Any
+
+    @staticmethod
+    def ok():
+        z = jnp.zeros((), jnp.int32)
+        f = jnp.zeros((), bool)
+        return Status(bad=f, step=z - 1, particle=z - 1, code=z, overflow=f, h_exceeded=f,
+                      rebuilds=z)
+
+
+@pytree_dataclass
+class State:
+    """Everything that changes during a run. ``nbrs`` is the jax-md neighbour list of the SPH
+    family (rows: fluid then boundary particles)."""
+
+    t: Any
+    step: Any
+    fluid: FluidState | None
+    boundary: BoundaryState | None
+    nbrs: Any
+    status: Status
