@@ -172,7 +172,7 @@ class Physics:
     delta_sph: bool = False
     artificial_viscosity: bool = False
     boundary_pressure: str = "fixed"
-    h_margin: float = 1.1
+    h_margin: float = 1.05
     rho_tolerance: float = 0.3
     x64: bool = False
 
@@ -188,13 +188,13 @@ class Physics:
         if unknown:
             raise ParameterError(f"unknown Physics option(s) {sorted(unknown)}; "
                                  f"allowed: {', '.join(cls.OPTIONS)}")
-        skin_factor = opts.pop("skin", 0.5)
+        skin_factor = opts.pop("skin", 0.25)
         cap = opts.pop("capacity_multiplier", 1.25)
         kernels.get(opts.get("kernel", "wendland"))
         bp = opts.get("boundary_pressure", "fixed")
         if bp not in BOUNDARY_PRESSURE:
             raise ParameterError(f"boundary_pressure must be one of {BOUNDARY_PRESSURE}, got {bp!r}")
-        h_margin = float(opts.get("h_margin", 1.1))
+        h_margin = float(opts.get("h_margin", 1.05))
         if not 1.0 <= h_margin <= 2.0:
             raise ParameterError(f"h_margin = {h_margin} out of range; allowed [1, 2]")
         h_all = [b.h for b in (scene.fluid, scene.boundary) if b is not None]

@@ -60,6 +60,6 @@ def boundary_block(xb, rho0, dxb, h, p=None, c0=None, gamma=7.0):
                          h=np.full(n, h))
 
 
-def sph_params(rho0, c0, mu, dx, r_clump, eps_xsph, delta, gamma=7.0):
+def sph_params(rho0, c0, mu, dx, r_clump, eps_xsph, delta, gamma=7.0, alpha=0.0):
     return SphParams(rho0=rho0, c0=c0, gamma=gamma, mu=mu, r_clump=r_clump, dp=dx,
-                     eps_xsph=eps_xsph, delta=delta)
+                     eps_xsph=eps_xsph, delta=delta, alpha=alpha)

@@ -1,0 +1,149 @@
+"""Command line: ``fpsi list | run | validate``.
+
+Bad input (unknown scene, key or out-of-range value) prints one line naming it and the
+allowed values, exits with code 2 and writes nothing.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+from .params import ParameterError
+
+
+def _plot_run(scene, res, out_png):
+    """Dam break: front Z(T) against Koshizuka & Oka; otherwise a particle snapshot."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from . import validate
+
+    f = res.state.fluid
+    fig, axes = plt.subplots(1, 2 if scene.name == "dam_break" else 1,
+                             figsize=(11 if scene.name == "dam_break" else 6, 4.2))
+    axes = np.atleast_1d(axes)
+    x = np.asarray(f.x)
+    sc = axes[0].scatter(x[:, 0], x[:, 1], c=np.linalg.norm(np.asarray(f.v), axis=1), s=2,
+                         cmap="viridis")
+    if scene.boundary is not None:
+        axes[0].scatter(scene.boundary.x[:, 0], scene.boundary.x[:, 1], s=1, c="0.6")
+    axes[0].set_aspect("equal")
+    axes[0].set_title(f"{scene.name}, t = {float(res.state.t):.3f} s")
+    fig.colorbar(sc, ax=axes[0], label="|v| [m/s]")
+    if scene.name == "dam_break" and res.observations is not None:
+        T, Z = validate.dam_break_front(scene, res)
+        ref = validate.load_csv("koshizuka_oka1996_surge_front.csv")
+        axes[1].plot(T, Z, label=f"fpsi-jax, dx = {scene.builder_kwargs['dx'] * 1e3:g} mm")
+        axes[1].plot(ref[:, 0], ref[:, 1], "ko", label="Koshizuka & Oka (1996)")
+        axes[1].set_xlabel("T = t sqrt(2g/a)")
+        axes[1].set_ylabel("Z = x_front / a")
+        axes[1].set_xlim(0, max(3.5, float(ref[:, 0].max()) + 0.2))
+        axes[1].legend()
+        axes[1].grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out_png, dpi=120)
+    plt.close(fig)
+
+
+def cmd_list(args):
+    from . import scenes, validate
+    print("scenes:")
+    for name, fn in scenes.SCENES.items():
+        doc = (fn.__doc__ or "").strip().splitlines()[0]
+        print(f"  {name:20s} {doc}")
+    print("validation cases:")
+    for name, d in validate.DESCRIPTIONS.items():
+        print(f"  {name:20s} {d}")
+    return 0
+
+
+def cmd_run(args):
+    from . import overrides as ov
+    from . import validate
+    from .simulate import SimulationError, simulate, setup
+
+    scene, phys = ov.build(args.scene, ov.parse_pairs(args.set))
+    t_end = scene.t_end if args.t_end is None else args.t_end
+    if not t_end > 0:
+        raise ParameterError(f"--t-end = {t_end} out of range; allowed (0, inf)")
+    setup(scene, args.dt, **phys)                      # every check before compiling
+    observe = validate.front_observer if scene.name == "dam_break" else None
+    try:
+        res = simulate(scene, t_end=t_end, output=args.out, every=args.every,
+                       progress=not args.quiet, dt=args.dt, observe=observe, **phys)
+    except SimulationError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 3
+    print(f"{scene.name}: {res.n_steps} steps of {float(res.params.dt):.4g} s, "
+          f"{scene.n_particles} particles, wall {res.wall_s:.1f} s "
+          f"(compile+first chunk {res.compile_s:.1f} s), "
+          f"{res.particle_steps_per_s / 1e6:.2f} M particle-steps/s, "
+          f"{res.rebuilds} neighbour rebuilds")
+    if args.out:
+        print(f"wrote {args.out} and {os.path.splitext(args.out)[0]}.xdmf")
+    if args.plot:
+        png = os.path.splitext(args.out or f"results/{scene.name}.h5")[0] + ".png"
+        os.makedirs(os.path.dirname(os.path.abspath(png)), exist_ok=True)
+        _plot_run(scene, res, png)
+        print(f"wrote {png}")
+        if scene.name == "dam_break" and res.observations is not None:
+            import numpy as np
+            T, Z = validate.dam_break_front(scene, res)
+            ref = validate.load_csv("koshizuka_oka1996_surge_front.csv")
+            ref = ref[(ref[:, 0] > 0) & (ref[:, 0] <= T.max())]
+            z = np.interp(ref[:, 0], T, Z)
+            print("front vs Koshizuka & Oka:  T      Z_exp   Z_sim   rel.err")
+            for t_, zr, zs in zip(ref[:, 0], ref[:, 1], z):
+                print(f"                          {t_:5.3f}  {zr:6.3f}  {zs:6.3f}  "
+                      f"{(zs - zr) / zr:+.1%}")
+    return 0
+
+
+def cmd_validate(args):
+    from . import overrides as ov
+    from . import validate
+    recs = validate.run(args.cases, quick=args.quick, overrides=ov.parse_pairs(args.set))
+    print(validate.format_table(recs))
+    if args.json:
+        os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
+        with open(args.json, "w") as fh:
+            json.dump([r.as_dict() for r in recs], fh, indent=1, default=str)
+    return 0 if all(r.passed for r in recs) else 1
+
+
+def make_parser():
+    p = argparse.ArgumentParser(prog="fpsi", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    sub.add_parser("list", help="list scenes and validation cases")
+    r = sub.add_parser("run", help="run a scene")
+    r.add_argument("scene")
+    r.add_argument("--t-end", type=float, default=None, help="physical time [s]")
+    r.add_argument("--out", default=None, help="HDF5 output path (.xdmf written beside)")
+    r.add_argument("--every", type=float, default=None, help="seconds between frames")
+    r.add_argument("--dt", type=float, default=None, help="time step (default: the bound)")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override a scene parameter, a Params leaf or a Physics option")
+    r.add_argument("--plot", action="store_true", help="write a PNG next to the output")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    v = sub.add_parser("validate", help="run registered validation cases")
+    v.add_argument("cases", nargs="*")
+    v.add_argument("--quick", action="store_true", help="coarse, fast versions")
+    v.add_argument("--set", action="append", metavar="KEY=VALUE")
+    v.add_argument("--json", default=None, help="write the records as JSON")
+    return p
+
+
+def main(argv=None):
+    args = make_parser().parse_args(argv)
+    try:
+        return {"list": cmd_list, "run": cmd_run, "validate": cmd_validate}[args.cmd](args)
+    except ParameterError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,187 @@
+"""Host driver: compiled chunks of steps, overflow → reallocate and redo, NaN guard,
+progress bar and output.
+
+    result = simulate(scene, t_end=0.4, output="results/run.h5", every=0.01)
+
+Between chunks the driver reads the chunk's :class:`~fpsi_jax.state.Status`:
+
+* neighbour overflow (or a smoothing length outgrowing the cut-off): the list is reallocated
+  with more room from the state at the start of the chunk and the chunk is redone, so no
+  pair is ever dropped;
+* a bad particle (non-finite, density out of band, out of the domain): the run stops with
+  :class:`SimulationError` naming the step, time, particle and quantity; the output file
+  keeps every frame written before (all of them finite).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import integrate, neighbors
+from .io import Writer
+from .params import ParameterError, Params
+from .scene import Physics, Scene
+from .state import STATUS_CODES, State
+
+
+class SimulationError(RuntimeError):
+    """A run went unstable. Attributes: step, time, particle, phase, quantity, output."""
+
+    def __init__(self, step, t, particle, quantity, phase="fluid", output=None, t_good=None):
+        self.step, self.time, self.particle = step, t, particle
+        self.phase, self.quantity, self.output = phase, quantity, output
+        where = f"; frames up to t = {t_good:.6g} s are in {output}" if output else ""
+        super().__init__(f"run unstable at step {step} (t = {t:.6g} s): {phase} particle "
+                         f"{particle}: {quantity}{where}")
+
+
+@dataclass
+class Result:
+    state: State
+    physics: Physics
+    params: Params
+    n_steps: int
+    wall_s: float
+    compile_s: float
+    rebuilds: int
+    reallocations: int
+    observations: object = None
+    output: str | None = None
+    first_chunk_steps: int = 0
+
+    @property
+    def particle_steps_per_s(self) -> float:
+        """Throughput after the first chunk (which includes the compile), all particles."""
+        n = self.physics.n_fluid + self.physics.n_boundary
+        steps = self.n_steps - self.first_chunk_steps
+        run = self.wall_s - self.compile_s
+        return n * steps / run if steps > 0 and run > 0 else float("nan")
+
+
+def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
+          **physics_overrides):
+    """Validate the scene and settings and return (Physics, Params with dt, dtype).
+    Every check happens here, before anything is compiled."""
+    scene.validate()
+    phys = Physics.for_scene(scene, **physics_overrides)
+    params = (params or scene.params)
+    bound = integrate.stable_dt(scene, params)
+    if dt is None:
+        dt = bound
+    else:
+        integrate.check_dt(scene, float(dt), params)
+    params = params.replace(dt=float(dt)).validate()
+    if phys.x64:
+        jax.config.update("jax_enable_x64", True)
+    return phys, params
+
+
+_rollout = jax.jit(integrate.rollout, static_argnums=(0, 3, 4))
+
+
+def _grow(phys: Physics, status) -> Physics:
+    nb = phys.neighbors
+    if bool(status.h_exceeded):
+        margin = phys.h_margin * 1.25
+        nb = dataclasses.replace(nb, r_cut=nb.r_cut * 1.25)
+        phys = dataclasses.replace(phys, h_margin=margin)
+    if bool(status.overflow):
+        nb = dataclasses.replace(nb, extra_capacity=nb.extra_capacity + max(
+            8, int(0.5 * (nb.extra_capacity + 32))))
+    return dataclasses.replace(phys, neighbors=nb)
+
+
+def _reallocate(phys: Physics, state: State) -> State:
+    x = state.fluid.x if state.boundary is None else jnp.concatenate(
+        [state.fluid.x, state.boundary.x])
+    return state.replace(nbrs=neighbors.allocate(phys.neighbors, x))
+
+
+def simulate(scene: Scene, t_end: float | None = None, output: str | None = None,
+             every: float | None = None, progress: bool = True, dt: float | None = None,
+             params: Params | None = None, observe: Callable | None = None,
+             chunk_steps: int | None = None, state: State | None = None,
+             **physics_overrides) -> Result:
+    """Run ``scene`` to ``t_end`` (default scene.t_end) in compiled chunks.
+
+    output      HDF5 path (an .xdmf sidecar is written next to it); None: no file
+    every       seconds between frames (default t_end/100); also the chunk length
+    dt          time step; default: the stability bound; larger than the bound is refused
+    observe     state → small pytree recorded every step (returned stacked over steps)
+    physics_overrides   Physics options (e.g. delta_sph=True, x64=True)
+    """
+    t_end = float(scene.t_end if t_end is None else t_end)
+    if not t_end > 0:
+        raise ParameterError(f"t_end = {t_end} out of range; allowed (0, inf)")
+    phys, params = setup(scene, dt, params, **physics_overrides)
+    dt = float(params.dt)
+    dtype = jnp.float64 if phys.x64 else jnp.float32
+    p = params.as_arrays(dtype)
+    n_total = int(math.ceil(t_end / dt - 1e-9))
+    every = t_end / 100 if every is None else float(every)
+    if not every > 0:
+        raise ParameterError(f"every = {every} out of range; allowed (0, t_end]")
+    chunk = chunk_steps or max(1, int(round(every / dt)))
+
+    state = integrate.init_state(scene, phys, p) if state is None else state
+    writer = Writer(output, scene, phys, params) if output else None
+    if writer:
+        writer.write(state)
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=n_total, desc=scene.name, unit="step", leave=False)
+    obs_chunks, done, reallocs, compile_s, first = [], 0, 0, 0.0, 0
+    t0 = time.perf_counter()
+    try:
+        while done < n_total:
+            n = min(chunk, n_total - done)
+            new, obs = _rollout(phys, state, p, n, observe)
+            jax.block_until_ready(new.status.bad)
+            if done == 0:
+                compile_s = time.perf_counter() - t0   # compile + first chunk
+                first = n
+            if bool(new.status.overflow) or bool(new.status.h_exceeded):
+                phys = _grow(phys, new.status)
+                state = _reallocate(phys, state)
+                reallocs += 1
+                continue
+            if bool(new.status.bad):
+                st = new.status
+                code = int(st.code)
+                raise SimulationError(
+                    int(st.step), int(st.step) * dt, int(st.particle), STATUS_CODES[code],
+                    output=output, t_good=float(state.t))
+            state = new
+            done += n
+            if observe is not None:
+                obs_chunks.append(jax.tree_util.tree_map(np.asarray, obs))
+            if writer:
+                writer.write(state)
+            if bar:
+                bar.update(n)
+    except SimulationError as e:
+        if writer:
+            writer.close("unstable", str(e))
+            writer = None
+        raise
+    finally:
+        if bar:
+            bar.close()
+        if writer:
+            writer.close()
+    wall = time.perf_counter() - t0
+    observations = None
+    if obs_chunks:
+        observations = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *obs_chunks)
+    return Result(state=state, physics=phys, params=params, n_steps=done, wall_s=wall,
+                  compile_s=compile_s, rebuilds=int(state.status.rebuilds),
+                  reallocations=reallocs, observations=observations, output=output,
+                  first_chunk_steps=first)
