@@ -45,7 +45,7 @@ def tank_walls(width, height, dxb, layers):
 def hydrostatic_fluid(x, rho0, c0, gamma, surface_y, g=G, dx=None, h=None):
     """Fluid block at rest with hydrostatic density ρ(P = ρ0 g (H − y)) and mass ρ0 dx²."""
     p = rho0 * g * np.maximum(surface_y - x[:, 1], 0.0)
-    rho = np.asarray(eos_density(p, rho0, c0, gamma))
+    rho = np.array(eos_density(p, rho0, c0, gamma))
     n = x.shape[0]
     return FluidBlock(x=x, v=np.zeros_like(x), rho=rho, mass=np.full(n, rho0 * dx * dx),
                       h=np.full(n, h))
@@ -55,7 +55,7 @@ def boundary_block(xb, rho0, dxb, h, p=None, c0=None, gamma=7.0):
     """Boundary block: mass ρ0 dxb², pressure ``p`` (default 0) and the matching density."""
     n = xb.shape[0]
     p = np.zeros(n) if p is None else np.asarray(p, float)
-    rho = np.full(n, rho0) if c0 is None else np.asarray(eos_density(p, rho0, c0, gamma))
+    rho = np.full(n, rho0) if c0 is None else np.array(eos_density(p, rho0, c0, gamma))
     return BoundaryBlock(x=xb, rho=rho, p=p, mass=np.full(n, rho0 * dxb * dxb),
                          h=np.full(n, h))
 
