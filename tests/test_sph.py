@@ -84,8 +84,10 @@ def ref_terms(i, nbrs, x, v, h, m, rho_old, rho, p, n_fluid, sp, anticlump_bound
             mu_ij = pr.h * vx / (pr.r2 + 0.01 * pr.h ** 2)
             Pi = -sp["alpha"] * sp["c0"] * mu_ij / (0.5 * (rho[i] + rho[j]))
             out["av"] += -m[j] * Pi * pr.gradw
-        # XSPH (K39, Monaghan 1989)
-        out["xsph"] += -sp["eps_xsph"] * m[j] / (0.5 * (rho[i] + rho[j])) * pr.w * pr.vij
+        # XSPH (K39, Monaghan 1989), over fluid neighbours only (sph.xsph_correction: the
+        # v = 0 boundary particles would pull the transport velocity to zero at a wall)
+        if fluid_j:
+            out["xsph"] += -sp["eps_xsph"] * m[j] / (0.5 * (rho[i] + rho[j])) * pr.w * pr.vij
     return out
 
 
@@ -340,6 +342,15 @@ def test_xsph_correction():
     want = np.array([_ref(i)["xsph"] for i in range(NF)])
     assert np.all(np.abs(want) > 0)
     np.testing.assert_allclose(np.asarray(xs), want, rtol=RTOL)
+    # by hand for particle 0: only its fluid neighbour 1 counts, the boundary particle 2 not
+    q = Pair(0, 1, X, V, Hs)
+    x0 = -SP["eps_xsph"] * M[1] / (0.5 * (RHO[0] + RHO[1])) * q.w * q.vij
+    np.testing.assert_allclose(np.asarray(xs)[0], x0, rtol=RTOL)
+    _, xs_f = _momentum(_phys(**{**OFF, "xsph": True}), idx=[[1, 3, 3], [0, 3, 3]])
+    np.testing.assert_array_equal(np.asarray(xs), np.asarray(xs_f))
+    # the fluid pair alone: m_0 δv_0 = −m_1 δv_1 (XSPH redistributes, no net transport)
+    xs_np = np.asarray(xs)
+    np.testing.assert_allclose(M[0] * xs_np[0], -M[1] * xs_np[1], rtol=1e-12)
 
 
 def test_all_terms_together():
