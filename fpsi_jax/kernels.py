@@ -19,6 +19,8 @@ from typing import NamedTuple, Callable
 
 import jax.numpy as jnp
 
+from .params import ParameterError
+
 SUPPORT = 2.0  # both kernels vanish for q >= 2
 
 
@@ -91,4 +93,4 @@ def get(name: str) -> Kernel:
     try:
         return KERNELS[name]
     except KeyError:
-        raise ValueError(f"kernel must be one of {sorted(KERNELS)}, got {name!r}") from None
+        raise ParameterError(f"kernel must be one of {sorted(KERNELS)}, got {name!r}") from None

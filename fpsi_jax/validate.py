@@ -60,7 +60,7 @@ def load_csv(name: str) -> np.ndarray:
 # --- hydrostatic tank --------------------------------------------------------------------
 @register("hydrostatic_tank", "still water: pressure vs ρ0 g (H − y), residual velocity")
 def hydrostatic_tank(quick: bool = False, overrides: dict | None = None):
-    base = {"dx": 0.01, "t_end": 1.0} if quick else {}
+    base = {"dx": 0.01} if quick else {}
     scene, phys = ov.build("hydrostatic_tank", overrides or {}, base)
     t0 = time.perf_counter()
     res = simulate(scene, progress=False, **phys)

@@ -7,14 +7,22 @@ factor F = (1/r) dW/dr consistent with dW/dr and finite at r = 0.
 import math
 
 import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
 
-jax.config.update("jax_enable_x64", True)
+from fpsi_jax import kernels
 
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
 
-from fpsi_jax import kernels  # noqa: E402
+@pytest.fixture(autouse=True, scope="module")
+def _float64():
+    """float64 for this module only (tight tolerances); restored afterwards so that other
+    test modules keep JAX's default float32."""
+    prev = jax.config.jax_enable_x64
+    jax.config.update("jax_enable_x64", True)
+    yield
+    jax.config.update("jax_enable_x64", prev)
+
 
 NAMES = ("wendland", "cubic")
 H = 0.0137  # an arbitrary smoothing length (not 1, so h-scalings are exercised)

@@ -8,16 +8,24 @@ gradients with respect to μ, c0 and α (jax.grad vs central finite differences)
 import math
 
 import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
 
-jax.config.update("jax_enable_x64", True)
+from fpsi_jax import integrate, kernels, scenes, sph
+from fpsi_jax.params import SphParams
+from fpsi_jax.scene import NeighborConfig, Physics
 
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
 
-from fpsi_jax import integrate, kernels, scenes, sph  # noqa: E402
-from fpsi_jax.params import SphParams  # noqa: E402
-from fpsi_jax.scene import NeighborConfig, Physics  # noqa: E402
+@pytest.fixture(autouse=True, scope="module")
+def _float64():
+    """float64 for this module only (tight tolerances); restored afterwards so that other
+    test modules keep JAX's default float32."""
+    prev = jax.config.jax_enable_x64
+    jax.config.update("jax_enable_x64", True)
+    yield
+    jax.config.update("jax_enable_x64", prev)
+
 
 RTOL = 1e-10
 KERN = kernels.get("wendland")
@@ -133,6 +141,10 @@ def _ref(i, sp=SP, **kw):
 def _momentum(phys, sp=None, gravity=(0.0, 0.0), idx=IDX, p=P):
     sp = _sp() if sp is None else sp
     return sph.momentum_rate(phys, KERN, sp, _a(gravity), _a(RHO), _a(p), _pairs(idx))
+
+
+def test_module_runs_in_float64():
+    assert _pairs().w.dtype == jnp.float64
 
 
 def test_configuration_is_inside_the_support():
