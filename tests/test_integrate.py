@@ -35,7 +35,8 @@ def _staggered(w_dt, n=2000):
 @pytest.mark.parametrize("w_dt", [0.1, 0.5, 1.0, 1.5])
 def test_density_update_is_stable_for_acoustic_oscillator(w_dt):
     assert _staggered(w_dt) < 1.0 / np.sqrt(1 - (w_dt / 2) ** 2) + 1e-9  # leapfrog ellipse
-    assert _kick_both_half_steps(w_dt) > 10.0   # why the density is not half-kicked
+    grown = _kick_both_half_steps(w_dt)
+    assert not np.isfinite(grown) or grown > 10.0   # why the density is not half-kicked
 
 
 def test_closed_box_without_dissipation_stays_bounded():
