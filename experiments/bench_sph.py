@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 
 from fpsi_jax import integrate, scenes
-from fpsi_jax.simulate import _grow, _reallocate, setup
+from fpsi_jax.simulate import grow, reallocate, setup
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -40,8 +40,8 @@ def bench(dx, steps, **phys_opts):
         if not (bool(new.status.overflow) or bool(new.status.h_exceeded)):
             st = new
             break
-        phys = _grow(phys, new.status)
-        st = _reallocate(phys, st)
+        phys = grow(phys, new)
+        st = reallocate(phys, st)
         compiled = run.lower(phys, st, p, steps, None).compile()
     r0 = int(st.status.rebuilds)
     t0 = time.perf_counter()

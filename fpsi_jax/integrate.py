@@ -32,7 +32,8 @@ from .scene import Physics, Scene
 from .state import BoundaryState, FluidState, State, Status
 
 
-def _dtype(phys: Physics):
+def dtype(phys: Physics):
+    """Floating-point type of the compiled step."""
     return jnp.float64 if phys.x64 else jnp.float32
 
 
@@ -136,7 +137,7 @@ def rollout(phys: Physics, state: State, params: Params, n_steps: int,
 # --- initial state -----------------------------------------------------------------------
 def init_state(scene: Scene, phys: Physics, params: Params) -> State:
     """Arrays on device, neighbour list allocated, initial rates evaluated."""
-    dt_ = _dtype(phys)
+    dt_ = dtype(phys)
     a = lambda v: jnp.asarray(v, dtype=dt_)
     fl = scene.fluid
     b = scene.boundary

@@ -86,19 +86,20 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
 _rollout = jax.jit(integrate.rollout, static_argnums=(0, 3, 4))
 
 
-def _grow(phys: Physics, status) -> Physics:
+def grow(phys: Physics, failed: State) -> Physics:
+    """Physics with a neighbour list that fits what ``failed`` (a redone chunk's end state)
+    ran out of: more capacity after an overflow, a larger cut-off if h outgrew it."""
     nb = phys.neighbors
-    if bool(status.h_exceeded):
-        margin = phys.h_margin * 1.25
+    if bool(failed.status.h_exceeded):
         nb = dataclasses.replace(nb, r_cut=nb.r_cut * 1.25)
-        phys = dataclasses.replace(phys, h_margin=margin)
-    if bool(status.overflow):
-        nb = dataclasses.replace(nb, extra_capacity=nb.extra_capacity + max(
-            8, int(0.5 * (nb.extra_capacity + 32))))
+        phys = dataclasses.replace(phys, h_margin=phys.h_margin * 1.25)
+    if bool(failed.status.overflow):
+        nb = neighbors.grow(nb, failed.nbrs)
     return dataclasses.replace(phys, neighbors=nb)
 
 
-def _reallocate(phys: Physics, state: State) -> State:
+def reallocate(phys: Physics, state: State) -> State:
+    """``state`` with its neighbour list allocated afresh for ``phys``."""
     x = state.fluid.x if state.boundary is None else jnp.concatenate(
         [state.fluid.x, state.boundary.x])
     return state.replace(nbrs=neighbors.allocate(phys.neighbors, x))
@@ -122,8 +123,7 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
         raise ParameterError(f"t_end = {t_end} out of range; allowed (0, inf)")
     phys, params = setup(scene, dt, params, **physics_overrides)
     dt = float(params.dt)
-    dtype = jnp.float64 if phys.x64 else jnp.float32
-    p = params.as_arrays(dtype)
+    p = params.as_arrays(integrate.dtype(phys))
     n_total = int(math.ceil(t_end / dt - 1e-9))
     every = t_end / 100 if every is None else float(every)
     if not every > 0:
@@ -149,8 +149,8 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
                 compile_s = time.perf_counter() - t0   # compile + first chunk
                 first = n
             if bool(new.status.overflow) or bool(new.status.h_exceeded):
-                phys = _grow(phys, new.status)
-                state = _reallocate(phys, state)
+                phys = grow(phys, new)
+                state = reallocate(phys, state)
                 reallocs += 1
                 continue
             if bool(new.status.bad):

@@ -17,14 +17,7 @@ from fpsi_jax.params import SphParams
 from fpsi_jax.scene import NeighborConfig, Physics
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _float64():
-    """float64 for this module only (tight tolerances); restored afterwards so that other
-    test modules keep JAX's default float32."""
-    prev = jax.config.jax_enable_x64
-    jax.config.update("jax_enable_x64", True)
-    yield
-    jax.config.update("jax_enable_x64", prev)
+pytestmark = pytest.mark.usefixtures("float64")  # conftest: x64 for this module only
 
 
 RTOL = 1e-10
