@@ -25,14 +25,17 @@ def _plot_run(scene, res, out_png):
     fig, axes = plt.subplots(1, 2 if scene.name == "dam_break" else 1,
                              figsize=(11 if scene.name == "dam_break" else 6, 4.2))
     axes = np.atleast_1d(axes)
-    x = np.asarray(f.x)
-    sc = axes[0].scatter(x[:, 0], x[:, 1], c=np.linalg.norm(np.asarray(f.v), axis=1), s=2,
-                         cmap="viridis")
+    if f is not None:
+        x = np.asarray(f.x)
+        sc = axes[0].scatter(x[:, 0], x[:, 1], c=np.linalg.norm(np.asarray(f.v), axis=1), s=2,
+                             cmap="viridis")
+        fig.colorbar(sc, ax=axes[0], label="|v| [m/s]")
     if scene.boundary is not None:
         axes[0].scatter(scene.boundary.x[:, 0], scene.boundary.x[:, 1], s=1, c="0.6")
+    if res.state.solid is not None:
+        draw_solids(axes[0], scene, res.state)
     axes[0].set_aspect("equal")
     axes[0].set_title(f"{scene.name}, t = {float(res.state.t):.3f} s")
-    fig.colorbar(sc, ax=axes[0], label="|v| [m/s]")
     if scene.name == "dam_break" and res.observations is not None:
         T, Z = validate.dam_break_front(scene, res)
         ref = validate.load_csv("koshizuka_oka1996_surge_front.csv")
@@ -46,6 +49,29 @@ def _plot_run(scene, res, out_png):
     fig.tight_layout()
     fig.savefig(out_png, dpi=120)
     plt.close(fig)
+
+
+def draw_solids(ax, scene, state, color="tab:orange"):
+    """Discs as circles (clamped ones grey), intact bonds as lines, walls as thick lines."""
+    import numpy as np
+    from matplotlib.collections import LineCollection, PatchCollection
+    from matplotlib.patches import Circle
+
+    s = state.solid
+    x, r = np.asarray(s.x), np.asarray(s.radius)
+    fixed = np.asarray(s.fixed)
+    circles = [Circle(xy, rad) for xy, rad in zip(x, r)]
+    ax.add_collection(PatchCollection(circles, facecolor=np.where(fixed, "0.6", color),
+                                      edgecolor="k", linewidth=0.2))
+    if state.bonds is not None:
+        b = state.bonds
+        ok = np.asarray(b.intact)
+        seg = np.stack([x[np.asarray(b.i)[ok]], x[np.asarray(b.j)[ok]]], axis=1)
+        ax.add_collection(LineCollection(seg, colors="k", linewidths=0.3))
+    if scene.walls is not None:
+        seg = np.stack([scene.walls.a, scene.walls.b], axis=1)
+        ax.add_collection(LineCollection(seg, colors="k", linewidths=2))
+    ax.autoscale_view()
 
 
 def cmd_list(args):

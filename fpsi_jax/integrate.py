@@ -17,6 +17,16 @@ tests/test_integrate.py::test_density_update_is_stable_for_acoustic_oscillator.)
 geometry of the pairs is computed once and shared by the density and momentum passes; the
 kernel uses h of the start of the step. The XSPH correction δv_XSPH used in a drift is the one
 of the previous step; it smooths the transport velocity, so the O(Δt) lag is harmless.
+
+DEM discs use the same kick–drift–kick for translation and rotation (W6, K5):
+
+    v½ = v + ½Δt a,  ω½ = ω + ½Δt α,  x' = x + Δt v½,  θ' = θ + Δt ω½
+    forces at (x', θ', v½, ω½): contacts (shear increment V_s(v½)Δt), walls, bonds,
+    gravity, external loads, then local damping with sign(v½), sign(ω½)
+    v' = v½ + ½Δt a',  ω' = ω½ + ½Δt α'
+
+which is the central-difference scheme of PFC/K (velocities at half steps) written with
+whole-step velocities. Clamped discs keep v = ω = 0.
 """
 from __future__ import annotations
 
@@ -26,10 +36,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import kernels, neighbors, sph
+from . import bonds as bonds_mod
+from . import dem, kernels, neighbors, sph
 from .params import ParameterError, Params
 from .scene import Physics, Scene
-from .state import BoundaryState, FluidState, State, Status
+from .state import BondState, BoundaryState, FluidState, SolidState, State, Status, WallState
 
 
 def dtype(phys: Physics):
@@ -74,17 +85,72 @@ def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nb
     return rho_new, h_new, acc, xs, b
 
 
+# --- DEM forces ---------------------------------------------------------------------------
+def solid_update(phys: Physics, params: Params, solid: SolidState, x, v, omega, theta, shear,
+                 idx, walls: WallState | None, bonds: BondState | None, t, dt):
+    """All forces on the discs at (x, θ, v, ω): returns (a, α, shear history, wall shear
+    history, bonds). ``dt`` is the shear-spring increment (0: no increment)."""
+    dp = params.dem
+    with jax.named_scope("dem.contacts"):
+        force, torque, shear, _ = dem.disc_contacts(dp, x, v, omega, solid.radius, solid.mass,
+                                                    solid.fixed, idx, shear, dt)
+    wall_shear = solid.wall_shear
+    if walls is not None:
+        with jax.named_scope("dem.walls"):
+            fw, tw, wall_shear, _ = dem.wall_contacts(dp, x, v, omega, solid.radius, solid.mass,
+                                                      walls.a, walls.b, wall_shear, dt)
+        force, torque = force + fw, torque + tw
+    if bonds is not None:
+        with jax.named_scope("bonds"):
+            fb, tb, alive, mode, fn, fs, m = bonds_mod.bond_forces(
+                params.bond, phys.bond_section, phys.n_solid, x, theta, solid.radius,
+                bonds.i, bonds.j, bonds.d0, bonds.e0, bonds.intact)
+            new = bonds.intact & ~alive
+            bonds = bonds.replace(intact=alive, fn=fn, fs=fs, m=m,
+                                  t_break=jnp.where(new, t, bonds.t_break),
+                                  mode=jnp.where(new, mode, bonds.mode))
+        force, torque = force + fb, torque + tb
+    g = jnp.asarray(params.gravity, x.dtype)
+    force = force + solid.mass[:, None] * g + solid.f_ext * dem.load_factor(dp.load_ramp, t)
+    with jax.named_scope("dem.local_damping"):
+        force = dem.local_damping(dp.alpha, force, v)
+        torque = dem.local_damping(dp.alpha, torque, omega)
+    free = ~solid.fixed
+    acc = jnp.where(free[:, None], force / solid.mass[:, None], 0.0)
+    alpha = jnp.where(free, torque / solid.inertia, 0.0)
+    return acc, alpha, shear, wall_shear, bonds
+
+
+def _solid_step(phys: Physics, state: State, params: Params, t):
+    dt = params.dt
+    s = state.solid
+    with jax.named_scope("integrate.solid_kick_drift"):
+        v_half = s.v + 0.5 * dt * s.acc
+        w_half = s.omega + 0.5 * dt * s.alpha
+        x_new = s.x + dt * v_half
+        th_new = s.theta + dt * w_half
+    with jax.named_scope("neighbors.dem_update"):
+        nbrs, rebuilt = neighbors.update(phys.dem_neighbors, state.solid_nbrs, x_new)
+        shear = jax.lax.cond(rebuilt, dem.remap_history, lambda o, h, n: h,
+                             state.solid_nbrs.idx, s.shear, nbrs.idx)
+    acc, alpha, shear, wshear, bonds = solid_update(
+        phys, params, s, x_new, v_half, w_half, th_new, shear, nbrs.idx, state.walls,
+        state.bonds, t, dt)
+    with jax.named_scope("integrate.solid_kick"):
+        solid = s.replace(x=x_new, theta=th_new, v=v_half + 0.5 * dt * acc,
+                          omega=w_half + 0.5 * dt * alpha, acc=acc, alpha=alpha, shear=shear,
+                          wall_shear=wshear)
+    return solid, bonds, nbrs, rebuilt
+
+
 # --- health ------------------------------------------------------------------------------
-def _check(phys: Physics, params: Params, fluid: FluidState, step, status: Status) -> Status:
-    """Per-particle health codes (see state.STATUS_CODES); remember the first failure."""
-    lo = jnp.asarray(phys.neighbors.origin, fluid.x.dtype)
-    hi = lo + jnp.asarray(phys.neighbors.box, fluid.x.dtype)
-    rho0 = params.sph.rho0
-    code = jnp.where(~jnp.all(jnp.isfinite(fluid.x), axis=1), 1,
-           jnp.where(~jnp.all(jnp.isfinite(fluid.v), axis=1), 2,
-           jnp.where(~jnp.isfinite(fluid.rho), 3,
-           jnp.where(jnp.abs(fluid.rho / rho0 - 1.0) > phys.rho_tolerance, 4,
-           jnp.where(jnp.any((fluid.x < lo) | (fluid.x >= hi), axis=1), 5, 0)))))
+def _box(phys: Physics, dtype_):
+    nb = phys.neighbors or phys.dem_neighbors
+    lo = jnp.asarray(nb.origin, dtype_)
+    return lo, lo + jnp.asarray(nb.box, dtype_)
+
+
+def _first(status: Status, code, step) -> Status:
     bad_now = jnp.any(code > 0)
     i = jnp.argmax(code > 0).astype(jnp.int32)
     first = bad_now & ~status.bad
@@ -95,9 +161,29 @@ def _check(phys: Physics, params: Params, fluid: FluidState, step, status: Statu
         code=jnp.where(first, code[i].astype(jnp.int32), status.code))
 
 
+def _check(phys: Physics, params: Params, fluid: FluidState, step, status: Status) -> Status:
+    """Per-particle health codes of the fluid (see state.STATUS_CODES); remember the first."""
+    lo, hi = _box(phys, fluid.x.dtype)
+    rho0 = params.sph.rho0
+    code = jnp.where(~jnp.all(jnp.isfinite(fluid.x), axis=1), 1,
+           jnp.where(~jnp.all(jnp.isfinite(fluid.v), axis=1), 2,
+           jnp.where(~jnp.isfinite(fluid.rho), 3,
+           jnp.where(jnp.abs(fluid.rho / rho0 - 1.0) > phys.rho_tolerance, 4,
+           jnp.where(jnp.any((fluid.x < lo) | (fluid.x >= hi), axis=1), 5, 0)))))
+    return _first(status, code, step)
+
+
+def _check_solid(phys: Physics, solid: SolidState, step, status: Status) -> Status:
+    """Health codes 6–8 of the discs (the particle index is the disc's)."""
+    lo, hi = _box(phys, solid.x.dtype)
+    code = jnp.where(~jnp.all(jnp.isfinite(solid.x), axis=1), 6,
+           jnp.where(~(jnp.all(jnp.isfinite(solid.v), axis=1) & jnp.isfinite(solid.omega)), 7,
+           jnp.where(jnp.any((solid.x < lo) | (solid.x >= hi), axis=1), 8, 0)))
+    return _first(status, code, step)
+
+
 # --- the step ----------------------------------------------------------------------------
-def step(phys: Physics, state: State, params: Params) -> State:
-    """Advance one time step (see the module docstring). Pure: (State, Params) → State."""
+def _fluid_step(phys: Physics, state: State, params: Params):
     dt = params.dt
     f = state.fluid
     with jax.named_scope("integrate.kick_drift"):
@@ -110,13 +196,32 @@ def step(phys: Physics, state: State, params: Params) -> State:
                                       state.boundary, nbrs, dt)
     with jax.named_scope("integrate.kick"):
         fluid = f.replace(x=x_new, v=v_half + 0.5 * dt * acc, rho=rho, h=h, acc=acc, xsph=xs)
+    return fluid, b, nbrs, rebuilt
+
+
+def step(phys: Physics, state: State, params: Params) -> State:
+    """Advance one time step (see the module docstring). Pure: (State, Params) → State.
+    Only the phases the scene has are traced: a DEM-only scene compiles no SPH and a
+    fluid-only scene no DEM."""
     n = state.step + 1
+    t = n * params.dt
     st = state.status
-    st = st.replace(overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool),
-                    h_exceeded=st.h_exceeded | (jnp.max(fluid.h) * 2.0 > phys.neighbors.r_cut),
-                    rebuilds=st.rebuilds + rebuilt.astype(jnp.int32))
-    st = _check(phys, params, fluid, n, st)
-    return State(t=n * dt, step=n, fluid=fluid, boundary=b, nbrs=nbrs, status=st)
+    new = state.replace(t=t, step=n)
+    if phys.has_fluid:
+        fluid, b, nbrs, rebuilt = _fluid_step(phys, state, params)
+        st = st.replace(overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool),
+                        h_exceeded=st.h_exceeded
+                        | (jnp.max(fluid.h) * 2.0 > phys.neighbors.r_cut),
+                        rebuilds=st.rebuilds + rebuilt.astype(jnp.int32))
+        st = _check(phys, params, fluid, n, st)
+        new = new.replace(fluid=fluid, boundary=b, nbrs=nbrs)
+    if phys.has_solid:
+        solid, bonds, snbrs, rebuilt = _solid_step(phys, state, params, t)
+        st = st.replace(overflow=st.overflow | snbrs.did_buffer_overflow.astype(bool),
+                        rebuilds=st.rebuilds + rebuilt.astype(jnp.int32))
+        st = _check_solid(phys, solid, n, st)
+        new = new.replace(solid=solid, bonds=bonds, solid_nbrs=snbrs)
+    return new.replace(status=st)
 
 
 def rollout(phys: Physics, state: State, params: Params, n_steps: int,
@@ -136,47 +241,121 @@ def rollout(phys: Physics, state: State, params: Params, n_steps: int,
 
 # --- initial state -----------------------------------------------------------------------
 def init_state(scene: Scene, phys: Physics, params: Params) -> State:
-    """Arrays on device, neighbour list allocated, initial rates evaluated."""
+    """Arrays on device, neighbour lists allocated, initial rates evaluated."""
     dt_ = dtype(phys)
     a = lambda v: jnp.asarray(v, dtype=dt_)
-    fl = scene.fluid
-    b = scene.boundary
-    boundary = None if b is None else BoundaryState(
-        x=a(b.x), rho=a(b.rho), p=a(b.p), h=a(b.h), mass=a(b.mass))
-    x = a(fl.x)
-    all_x = x if boundary is None else jnp.concatenate([x, boundary.x])
-    nbrs = neighbors.allocate(phys.neighbors, all_x)
     z = jnp.zeros_like
-    fluid = FluidState(x=x, v=a(fl.v), rho=a(fl.rho), h=a(fl.h), mass=a(fl.mass),
-                       acc=z(x), xsph=z(x))
-    return refresh_rates(phys, State(t=a(0.0), step=jnp.zeros((), jnp.int32), fluid=fluid,
-                                     boundary=boundary, nbrs=nbrs, status=Status.ok()),
-                         params)
+    fluid = boundary = nbrs = solid = bonds = walls = snbrs = None
+    if scene.fluid is not None:
+        fl = scene.fluid
+        b = scene.boundary
+        boundary = None if b is None else BoundaryState(
+            x=a(b.x), rho=a(b.rho), p=a(b.p), h=a(b.h), mass=a(b.mass))
+        x = a(fl.x)
+        all_x = x if boundary is None else jnp.concatenate([x, boundary.x])
+        nbrs = neighbors.allocate(phys.neighbors, all_x)
+        fluid = FluidState(x=x, v=a(fl.v), rho=a(fl.rho), h=a(fl.h), mass=a(fl.mass),
+                           acc=z(x), xsph=z(x))
+    if scene.solid is not None:
+        so = scene.solid
+        x = a(so.x)
+        fixed = jnp.asarray(so.fixed, bool)
+        snbrs = neighbors.allocate(phys.dem_neighbors, x)
+        n_w = scene.walls.n if scene.walls is not None else 0
+        solid = SolidState(
+            x=x, v=jnp.where(fixed[:, None], 0.0, a(so.v)), omega=jnp.where(fixed, 0.0, a(so.omega)),
+            theta=a(np.zeros(so.n)), acc=z(x), alpha=a(np.zeros(so.n)), radius=a(so.radius),
+            mass=a(so.mass), inertia=a(so.inertia), fixed=fixed, f_ext=a(so.f_ext),
+            shear=jnp.zeros(snbrs.idx.shape, dt_), wall_shear=jnp.zeros((so.n, n_w), dt_))
+        if scene.walls is not None:
+            walls = WallState(a=a(scene.walls.a), b=a(scene.walls.b))
+        if scene.bonds is not None:
+            i = jnp.asarray(scene.bonds.i, jnp.int32)
+            j = jnp.asarray(scene.bonds.j, jnp.int32)
+            d0, e0 = bonds_mod.rest_geometry(x, i, j)
+            nb = scene.bonds.n
+            bonds = BondState(i=i, j=j, d0=d0, e0=e0, intact=jnp.ones(nb, bool),
+                              fn=jnp.zeros(nb, dt_), fs=jnp.zeros(nb, dt_), m=jnp.zeros(nb, dt_),
+                              t_break=jnp.full(nb, -1.0, dt_), mode=jnp.zeros(nb, jnp.int32))
+    state = State(t=a(0.0), step=jnp.zeros((), jnp.int32), fluid=fluid, boundary=boundary,
+                  nbrs=nbrs, status=Status.ok(), solid=solid, bonds=bonds, solid_nbrs=snbrs,
+                  walls=walls)
+    return refresh_rates(phys, state, params)
 
 
 def refresh_rates(phys: Physics, state: State, params: Params) -> State:
-    """Recompute the stored acceleration and XSPH correction at the current state (after
-    init or a reallocation); positions, densities and h are left as they are."""
-    f = state.fluid
-    _, _, acc, xs, b = fluid_update(phys, params, f.x, f.v, f.rho, f.h, f.mass,
-                                    state.boundary, state.nbrs, 0.0)
-    return state.replace(fluid=f.replace(acc=acc, xsph=xs), boundary=b)
+    """Recompute the stored accelerations (and XSPH correction) at the current state (after
+    init or a reallocation); positions, densities, h and histories are left as they are."""
+    if phys.has_fluid:
+        f = state.fluid
+        _, _, acc, xs, b = fluid_update(phys, params, f.x, f.v, f.rho, f.h, f.mass,
+                                        state.boundary, state.nbrs, 0.0)
+        state = state.replace(fluid=f.replace(acc=acc, xsph=xs), boundary=b)
+    if phys.has_solid:
+        s = state.solid
+        acc, alpha, _, _, _ = solid_update(phys, params, s, s.x, s.v, s.omega, s.theta, s.shear,
+                                           state.solid_nbrs.idx, state.walls, state.bonds,
+                                           state.t, 0.0)
+        state = state.replace(solid=s.replace(acc=acc, alpha=alpha))
+    return state
 
 
 # --- time step ---------------------------------------------------------------------------
-def stable_dt(scene: Scene, params: Params | None = None, a_max: float | None = None) -> float:
-    """Largest time step allowed by the explicit bounds of physics.md §Time integration:
-    Δt ≤ min(0.25 h/(c0 + |v|max), 0.125 h²/ν, 0.25 √(h/|a|max)), h the smallest smoothing
-    length, |v|max the scene's velocity scale and |a|max = max(|g|, a_max)."""
-    p = params or scene.params
-    sp = p.sph
+def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
+    """SPH bound (physics.md §Time integration): Δt ≤ min(0.25 h/(c0 + |v|max),
+    0.125 h²/ν, 0.25 √(h/|a|max)), h the smallest smoothing length, |v|max the scene's
+    velocity scale and |a|max = max(|g|, a_max)."""
+    sp = params.sph
     h = float(np.min(scene.fluid.h))
     nu = float(sp.mu) / float(sp.rho0)
-    g = float(np.linalg.norm(np.asarray(p.gravity, float)))
+    g = float(np.linalg.norm(np.asarray(params.gravity, float)))
     acc = max(g, a_max or 0.0, 1e-12)
     bounds = [0.25 * h / (float(sp.c0) + scene.v_max), 0.25 * np.sqrt(h / acc)]
     if nu > 0:
         bounds.append(0.125 * h * h / nu)
+    return float(min(bounds))
+
+
+DEM_DT_FACTOR = 0.2
+
+
+def dem_dt(scene: Scene, params: Params, section: str = "slab") -> float:
+    """DEM bound (physics.md §Time integration): Δt ≤ 0.2 √(m_min/k_max), and the same for
+    rotation, 0.2 √(J_min/k_rot). k_max adds the contact spring and the stiffest bond
+    (k̄ A); k_rot = k̄_n I + (k̄_s A + k_s) R_max² for the stiffest bond."""
+    so, dp, bp = scene.solid, params.dem, params.bond
+    free = ~np.asarray(so.fixed, bool)
+    if not free.any():
+        free = np.ones(so.n, bool)
+    m = float(np.min(so.mass[free]))
+    J = float(np.min(so.inertia[free]))
+    r = float(np.max(so.radius))
+    kn, ks = float(dp.kn), float(dp.ks)
+    k_rot = ks * r * r
+    if scene.bonds is not None and bp is not None:
+        r_bar = float(bp.lam) * r
+        A, I = (2 * r_bar * float(bp.thickness), 2.0 / 3.0 * float(bp.thickness) * r_bar ** 3) \
+            if section == "slab" else (np.pi * r_bar ** 2, 0.25 * np.pi * r_bar ** 4)
+        kn += float(bp.kn) * A
+        ks += float(bp.ks) * A
+        k_rot = float(bp.kn) * I + ks * r * r
+    k = max(kn, ks)
+    bound = np.sqrt(m / k)
+    if k_rot > 0:
+        bound = min(bound, np.sqrt(J / k_rot))
+    return float(DEM_DT_FACTOR * bound)
+
+
+def stable_dt(scene: Scene, params: Params | None = None, a_max: float | None = None,
+              section: str | None = None) -> float:
+    """Largest time step allowed by the explicit bounds of the phases the scene has."""
+    p = params or scene.params
+    bounds = []
+    if scene.fluid is not None:
+        bounds.append(sph_dt(scene, p, a_max))
+    if scene.solid is not None:
+        sec = section or scene.options.get("bond_section", "slab")
+        bounds.append(dem_dt(scene, p, sec))
     return float(min(bounds))
 
 
@@ -187,5 +366,5 @@ def check_dt(scene: Scene, dt: float, params: Params | None = None) -> None:
     if dt > bound * (1 + 1e-9):
         raise ParameterError(
             f"dt = {dt:.4g} s exceeds the stability bound {bound:.4g} s "
-            "(0.25 h/(c0+|v|max), 0.125 h²/ν, 0.25 √(h/|a|max)); allowed (0, "
-            f"{bound:.4g}] s")
+            "(SPH: 0.25 h/(c0+|v|max), 0.125 h²/ν, 0.25 √(h/|a|max); DEM: 0.2 √(m/k)); "
+            f"allowed (0, {bound:.4g}] s")

@@ -5,11 +5,16 @@ Layout of a file::
     /time (T,)  /step (T,)                     one entry per written frame
     /fluid/{x (T,n,2), v (T,n,2), rho (T,n), p (T,n), h (T,n)}
     /boundary/{x (n,2), rho (n,), p (T,n)}     positions are fixed, pressure may not be
+    /solid/{x (T,n,2), v (T,n,2), omega (T,n), theta (T,n), radius (n,), fixed (n,)}
+    /bonds/{i (b,), j (b,), intact (T,b), fn (T,b), fs (T,b), m (T,b)}
+    /bonds/breaks/{bond, time, mode}            every break so far (mode 1 tension, 2 shear)
+    /walls/{a (w,2), b (w,2)}
     attrs: scene, physics, params (JSON), fpsi_version, status
 
 Datasets are extendible along the time axis and the file is flushed after every frame, so
 a run that stops (or crashes) leaves a valid file up to its last good frame. Nothing
-non-finite is ever written: the driver checks a frame before handing it over.
+non-finite is ever written: the driver checks a frame before handing it over. The XDMF
+sidecar is rewritten when the frame count reaches a power of two and on close (O(T) in all).
 """
 from __future__ import annotations
 
@@ -38,17 +43,38 @@ class Writer:
         self.f.attrs["fpsi_version"] = __version__
         self.f.attrs["status"] = "running"
         self.n_fluid, self.n_boundary = phys.n_fluid, phys.n_boundary
+        self.n_solid, self.n_bonds = phys.n_solid, phys.n_bonds
         self._make("time", (), np.float64)
         self._make("step", (), np.int64)
         nf = self.n_fluid
-        for k, shape in (("x", (nf, 2)), ("v", (nf, 2)), ("rho", (nf,)), ("p", (nf,)),
-                         ("h", (nf,))):
-            self._make(f"fluid/{k}", shape, np.float32)
+        if nf:
+            for k, shape in (("x", (nf, 2)), ("v", (nf, 2)), ("rho", (nf,)), ("p", (nf,)),
+                             ("h", (nf,))):
+                self._make(f"fluid/{k}", shape, np.float32)
         if self.n_boundary:
             self.f.create_dataset("boundary/x", data=np.asarray(scene.boundary.x, np.float32))
             self.f.create_dataset("boundary/rho", data=np.asarray(scene.boundary.rho,
                                                                   np.float32))
             self._make("boundary/p", (self.n_boundary,), np.float32)
+        ns = self.n_solid
+        if ns:
+            for k, shape in SOLID_FIELDS:
+                self._make(f"solid/{k}", shape(ns), np.float32)
+            self.f.create_dataset("solid/radius", data=np.asarray(scene.solid.radius, np.float32))
+            self.f.create_dataset("solid/fixed", data=np.asarray(scene.solid.fixed, np.uint8))
+        if self.n_bonds:
+            nb = self.n_bonds
+            self.f.create_dataset("bonds/i", data=np.asarray(scene.bonds.i, np.int32))
+            self.f.create_dataset("bonds/j", data=np.asarray(scene.bonds.j, np.int32))
+            self._make("bonds/intact", (nb,), np.uint8)
+            for k in BOND_FORCES:
+                self._make(f"bonds/{k}", (nb,), np.float32)
+            for k, dt in (("bond", np.int32), ("time", np.float64), ("mode", np.int32)):
+                self.f.create_dataset(f"bonds/breaks/{k}", shape=(0,), maxshape=(None,),
+                                      dtype=dt, chunks=(256,))
+        if scene.walls is not None:
+            self.f.create_dataset("walls/a", data=np.asarray(scene.walls.a, np.float32))
+            self.f.create_dataset("walls/b", data=np.asarray(scene.walls.b, np.float32))
         self.frames = 0
         self.sph_params = params.sph
 
@@ -61,32 +87,60 @@ class Writer:
         d.resize(self.frames + 1, axis=0)
         d[self.frames] = value
 
-    def write(self, state):
-        """Append one frame; refuses non-finite data (the driver checks before calling)."""
-        fl = state.fluid
-        sp = self.sph_params
-        data = {"x": fl.x, "v": fl.v, "rho": fl.rho, "h": fl.h,
-                "p": sph.eos_pressure(fl.rho, sp.rho0, sp.c0, sp.gamma)}
+    def _frame_data(self, state) -> dict:
+        data = {}
+        if self.n_fluid:
+            fl, sp = state.fluid, self.sph_params
+            data.update({f"fluid/{k}": v for k, v in (
+                ("x", fl.x), ("v", fl.v), ("rho", fl.rho), ("h", fl.h),
+                ("p", sph.eos_pressure(fl.rho, sp.rho0, sp.c0, sp.gamma)))})
+        if self.n_boundary:
+            data["boundary/p"] = state.boundary.p
+        if self.n_solid:
+            data.update({f"solid/{k}": getattr(state.solid, k) for k, _ in SOLID_FIELDS})
+        if self.n_bonds:
+            data.update({f"bonds/{k}": getattr(state.bonds, k) for k in BOND_FORCES})
         data = {k: np.asarray(v) for k, v in data.items()}
         for k, v in data.items():
             if not np.all(np.isfinite(v)):
-                raise ValueError(f"refusing to write non-finite fluid.{k} to {self.path}")
+                raise ValueError(f"refusing to write non-finite {k} to {self.path}")
+        return data
+
+    def write(self, state):
+        """Append one frame; refuses non-finite data (the driver checks before calling)."""
+        data = self._frame_data(state)
         self._append("time", float(state.t))
         self._append("step", int(state.step))
-        for k in FLUID_FIELDS:
-            self._append(f"fluid/{k}", data[k])
-        if self.n_boundary:
-            self._append("boundary/p", np.asarray(state.boundary.p))
+        for k, v in data.items():
+            self._append(k, v)
+        if self.n_bonds:
+            b = state.bonds
+            self._append("bonds/intact", np.asarray(b.intact, np.uint8))
+            tb = np.asarray(b.t_break)
+            k = np.flatnonzero(tb >= 0)
+            k = k[np.argsort(tb[k], kind="stable")]
+            for name, val in (("bond", k), ("time", tb[k]), ("mode", np.asarray(b.mode)[k])):
+                d = self.f[f"bonds/breaks/{name}"]
+                d.resize(len(k), axis=0)
+                d[:] = val
         self.frames += 1
         self.f.flush()
-        write_xdmf(self.path, self.f)
+        if self.frames & (self.frames - 1) == 0:
+            write_xdmf(self.path, self.f)
 
     def close(self, status="finished", message=""):
         if self.f:
             self.f.attrs["status"] = status
             self.f.attrs["message"] = message
+            if self.frames:
+                write_xdmf(self.path, self.f)
             self.f.close()
             self.f = None
+
+
+SOLID_FIELDS = (("x", lambda n: (n, 2)), ("v", lambda n: (n, 2)), ("omega", lambda n: (n,)),
+                ("theta", lambda n: (n,)))
+BOND_FORCES = ("fn", "fs", "m")
 
 
 def _slab(h5name, path, k, n, ncomp=None, comp=None, total=None):
@@ -122,21 +176,29 @@ def write_xdmf(h5path, f=None):
         times = f["time"][:]
         T = len(times)
         name = os.path.basename(h5path)
-        nf = f["fluid/x"].shape[1]
         parts = ['<?xml version="1.0" ?>', '<Xdmf Version="2.0">', "<Domain>"]
-        parts.append('<Grid Name="fluid" GridType="Collection" CollectionType="Temporal">')
-        for k, t in enumerate(times):
-            parts.append(f'<Grid Name="fluid_{k}" GridType="Uniform"><Time Value="{t:.9g}"/>')
-            parts.append(f'<Topology TopologyType="Polyvertex" NumberOfElements="{nf}"/>')
-            parts.append(_geometry_xy(name, "/fluid/x", k, nf, T))
-            for c, lab in enumerate(("vx", "vy")):
-                parts.append(f'<Attribute Name="{lab}" AttributeType="Scalar" Center="Node">'
-                             + _slab(name, "/fluid/v", k, nf, 2, c, T) + "</Attribute>")
-            for q in ("rho", "p", "h"):
-                parts.append(f'<Attribute Name="{q}" AttributeType="Scalar" Center="Node">'
-                             + _slab(name, f"/fluid/{q}", k, nf, total=T) + "</Attribute>")
+        for phase, scalars in (("fluid", ("rho", "p", "h")), ("solid", ("omega", "theta"))):
+            if f"{phase}/x" not in f:
+                continue
+            nf = f[f"{phase}/x"].shape[1]
+            parts.append(f'<Grid Name="{phase}" GridType="Collection" CollectionType="Temporal">')
+            for k, t in enumerate(times):
+                parts.append(f'<Grid Name="{phase}_{k}" GridType="Uniform">'
+                             f'<Time Value="{t:.9g}"/>')
+                parts.append(f'<Topology TopologyType="Polyvertex" NumberOfElements="{nf}"/>')
+                parts.append(_geometry_xy(name, f"/{phase}/x", k, nf, T))
+                for c, lab in enumerate(("vx", "vy")):
+                    parts.append(f'<Attribute Name="{lab}" AttributeType="Scalar" Center="Node">'
+                                 + _slab(name, f"/{phase}/v", k, nf, 2, c, T) + "</Attribute>")
+                for q in scalars:
+                    parts.append(f'<Attribute Name="{q}" AttributeType="Scalar" Center="Node">'
+                                 + _slab(name, f"/{phase}/{q}", k, nf, total=T) + "</Attribute>")
+                if phase == "solid":
+                    parts.append('<Attribute Name="radius" AttributeType="Scalar" Center="Node">'
+                                 f'<DataItem Dimensions="{nf}" NumberType="Float" Precision="4" '
+                                 f'Format="HDF">{name}:/solid/radius</DataItem></Attribute>')
+                parts.append("</Grid>")
             parts.append("</Grid>")
-        parts.append("</Grid>")
         if "boundary" in f:
             nb = f["boundary/x"].shape[0]
             parts.append('<Grid Name="boundary" GridType="Collection" '
@@ -170,6 +232,9 @@ class Run:
     step: np.ndarray
     fluid: dict
     boundary: dict
+    solid: dict
+    bonds: dict
+    breaks: dict
     scene: dict
     physics: dict
     params: dict
@@ -186,8 +251,14 @@ def read(path) -> Run:
     with h5py.File(path, "r") as f:
         fluid = {k: f[f"fluid/{k}"][:] for k in f["fluid"]} if "fluid" in f else {}
         boundary = {k: f[f"boundary/{k}"][:] for k in f["boundary"]} if "boundary" in f else {}
+        solid = {k: f[f"solid/{k}"][:] for k in f["solid"]} if "solid" in f else {}
+        bonds = ({k: f[f"bonds/{k}"][:] for k in f["bonds"] if k != "breaks"}
+                 if "bonds" in f else {})
+        breaks = ({k: f[f"bonds/breaks/{k}"][:] for k in f["bonds/breaks"]}
+                  if "bonds/breaks" in f else {})
         a = f.attrs
         return Run(time=f["time"][:], step=f["step"][:], fluid=fluid, boundary=boundary,
+                   solid=solid, bonds=bonds, breaks=breaks,
                    scene=json.loads(a["scene"]), physics=json.loads(a["physics"]),
                    params=json.loads(a["params"]), status=str(a.get("status", "")),
                    message=str(a.get("message", "")))

@@ -79,6 +79,67 @@ class SphParams:
 
 
 @pytree_dataclass
+class DemParams:
+    """Linear DEM contacts between discs and with walls (physics.md §DEM; W10–W17, K5–K16,
+    K25). Stiffnesses are per unit thickness (N/m for a 1 m thick 2D model).
+
+    kn, ks      normal and shear contact spring stiffness k_n, k_s (W10, W13)
+    mu          Coulomb friction coefficient (W14)
+    beta_n      normal dashpot ratio β_n: F = 2β_n √(m k_n) δ̇ (W15–W17), m the reduced mass
+    beta_s      shear dashpot ratio β_s (W16 prints β_n there: a typo)
+    alpha       local damping α (K25): F_d = −α |F| sign(v) per component, moments too
+    load_ramp   external loads grow linearly from 0 over this time [s] (0: applied at once)
+    """
+
+    kn: Any = 1.0e6
+    ks: Any = 5.0e5
+    mu: Any = 0.3
+    beta_n: Any = 0.0
+    beta_s: Any = 0.0
+    alpha: Any = 0.0
+    load_ramp: Any = 0.0
+
+    def validate(self):
+        require("dem.kn", self.kn, 0.0, None, lo_open=True)
+        require("dem.ks", self.ks, 0.0, None)
+        require("dem.mu", self.mu, 0.0, None)
+        require("dem.beta_n", self.beta_n, 0.0, 1.0, hi_open=True)
+        require("dem.beta_s", self.beta_s, 0.0, 1.0, hi_open=True)
+        require("dem.alpha", self.alpha, 0.0, 1.0, hi_open=True)
+        require("dem.load_ramp", self.load_ramp, 0.0, None)
+
+
+@pytree_dataclass
+class BondParams:
+    """Parallel bonds (physics.md §Parallel bonds; K17–K22, W26–W38).
+
+    kn, ks      bond normal and shear stiffness per unit area k̄_n, k̄_s [Pa/m]
+    sigma_c     tensile strength σ̄_c [Pa] (K21): breaks when F̄_n/A + β̄|M̄|R̄/I ≥ σ̄_c
+    tau_c       shear strength τ̄_c [Pa] (K22): breaks when |F̄_s|/A ≥ τ̄_c
+    beta_bar    moment-contribution factor β̄ (1 in K21, 0 in W37)
+    lam         bond radius multiplier λ: R̄ = λ (R_A + R_B)/2
+    thickness   out-of-plane thickness t of the slab section [m]
+    """
+
+    kn: Any = 1.0e9
+    ks: Any = 4.0e8
+    sigma_c: Any = 1.0e30
+    tau_c: Any = 1.0e30
+    beta_bar: Any = 1.0
+    lam: Any = 1.0
+    thickness: Any = 1.0
+
+    def validate(self):
+        require("bond.kn", self.kn, 0.0, None, lo_open=True)
+        require("bond.ks", self.ks, 0.0, None)
+        require("bond.sigma_c", self.sigma_c, 0.0, None, lo_open=True)
+        require("bond.tau_c", self.tau_c, 0.0, None, lo_open=True)
+        require("bond.beta_bar", self.beta_bar, 0.0, 1.0)
+        require("bond.lam", self.lam, 0.0, 1.0, lo_open=True)
+        require("bond.thickness", self.thickness, 0.0, None, lo_open=True)
+
+
+@pytree_dataclass
 class Params:
     """All differentiable parameters of a scene.
 
@@ -89,14 +150,17 @@ class Params:
     gravity: Any = (0.0, -9.81)
     dt: Any = 1.0e-4
     sph: SphParams | None = None
+    dem: DemParams | None = None
+    bond: BondParams | None = None
 
     def validate(self):
         require("dt", self.dt, 0.0, None, lo_open=True)
         g = np.asarray(self.gravity, dtype=float)
         if g.shape != (2,) or not np.all(np.isfinite(g)):
             raise ParameterError(f"gravity must be a finite 2-vector, got {self.gravity!r}")
-        if self.sph is not None:
-            self.sph.validate()
+        for sub in (self.sph, self.dem, self.bond):
+            if sub is not None:
+                sub.validate()
         return self
 
     # --- naming ---------------------------------------------------------------------------
@@ -156,3 +220,81 @@ class Params:
     def as_arrays(self, dtype) -> "Params":
         """Convert every leaf to a JAX array of ``dtype`` (what the compiled step receives)."""
         return jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=dtype), self)
+
+
+# --- material mappings (physics.md §Parallel bonds) ---------------------------------------
+def _check_elastic(E, nu, nu_max=0.5):
+    require("E", E, 0.0, None, lo_open=True)
+    require("nu", nu, -1.0, nu_max, lo_open=True, hi_open=nu_max == 0.5)
+
+
+def shear_modulus(E, nu):
+    _check_elastic(E, nu)
+    return E / (2.0 * (1.0 + nu))
+
+
+def k42_mapping(E, nu, radius, lam=1.0, plate=False, contact_fraction=None):
+    """Bond and contact stiffnesses of K42–K43 for equal discs of radius R (R_A + R_B = 2R):
+    k̄_n = E/(2R), k̄_s = G/(2R), k_n = E·2R̄/(2R) = λE, k_s = λG.
+
+    ``plate=True`` is K's plate variant: E ← E(1−ν)/((1+ν)(1−2ν)) and k_s = ½k_n,
+    k̄_s = ½k̄_n (K §6.3.3, "after the calibration procedure").
+
+    ``contact_fraction=None`` keeps K's contact springs (k_n = λE: as stiff as the bond, so a
+    bonded pair is twice as stiff in compression as in tension). A number c splits the same
+    total stiffness as W26–W30 do instead: A k̄ + k = K42's A k̄ with k = c A k̄ (W: c = 0.01),
+    so tension and compression differ by the fraction c only.
+
+    Returns bond_kn, bond_ks [Pa/m] and kn, ks [N/m per unit thickness]."""
+    _check_elastic(E, nu)
+    require("radius", radius, 0.0, None, lo_open=True)
+    require("lam", lam, 0.0, 1.0, lo_open=True)
+    if plate:
+        E = E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
+        bkn, bks, kn, ks = E / (2 * radius), 0.25 * E / radius, lam * E, 0.5 * lam * E
+    else:
+        G = E / (2 * (1 + nu))
+        bkn, bks, kn, ks = E / (2 * radius), G / (2 * radius), lam * E, lam * G
+    if contact_fraction is None:
+        return dict(bond_kn=bkn, bond_ks=bks, kn=kn, ks=ks)
+    require("contact_fraction", contact_fraction, 0.0, None)
+    f = 1.0 + contact_fraction
+    return dict(bond_kn=bkn / f, bond_ks=bks / f, kn=contact_fraction * kn / f,
+                ks=contact_fraction * ks / f)
+
+
+def lattice_mapping(E, nu, radius, thickness=1.0, lam=1.0, contact_fraction=0.01):
+    """Hexagonal-lattice spring stiffnesses, plane stress (Griffiths & Mustoe 2001, W ref.
+    [40]): K_n = E t/(√3 (1−ν)), K_s = K_n (1−3ν)/(1+ν); needs ν ≤ 1/3 (K_s ≥ 0).
+
+    The total K_ij is split as in W26–W30: K = A k̄ + k with k = ``contact_fraction``·A k̄
+    (W uses 0.01), A = 2R̄t the slab section of the bond. Returns bond_kn, bond_ks [Pa/m],
+    kn, ks [N/m]."""
+    _check_elastic(E, nu, nu_max=1.0 / 3.0)
+    if nu > 1.0 / 3.0:
+        raise ParameterError(f"nu = {nu} is out of range for the hexagonal-lattice mapping; "
+                             "allowed (-1, 1/3] (k_s = k_n(1-3nu)/(1+nu) must be >= 0)")
+    require("radius", radius, 0.0, None, lo_open=True)
+    require("thickness", thickness, 0.0, None, lo_open=True)
+    require("contact_fraction", contact_fraction, 0.0, None)
+    Kn = E * thickness / (math.sqrt(3.0) * (1 - nu))
+    Ks = Kn * (1 - 3 * nu) / (1 + nu)
+    A = 2 * lam * radius * thickness
+    f = 1.0 + contact_fraction
+    return dict(bond_kn=Kn / (f * A), bond_ks=Ks / (f * A),
+                kn=contact_fraction * Kn / f, ks=contact_fraction * Ks / f)
+
+
+def hexagonal_strength(sigma_ult, nu, radius, thickness=1.0, lam=1.0):
+    """Critical bond forces and stresses of a hexagonal packing (W31–W34, Tavarez & Plesha
+    2007): f_n = R̄tσ(√3 − ν/√3)/(2(1−ν)), f_s = R̄tσ(1−3ν)/(2(1−ν)), σ = f/(2R̄t).
+    Returns sigma_c, tau_c [Pa] and fn_crit, fs_crit [N]."""
+    require("sigma_ult", sigma_ult, 0.0, None, lo_open=True)
+    _check_elastic(1.0, nu)
+    Rb = lam * radius
+    fn = Rb * thickness * sigma_ult * (math.sqrt(3.0) - nu / math.sqrt(3.0)) / (2 * (1 - nu))
+    fs = Rb * thickness * sigma_ult * (1 - 3 * nu) / (2 * (1 - nu))
+    if fs <= 0:
+        raise ParameterError(f"nu = {nu} gives a non-positive shear strength; allowed nu < 1/3")
+    return dict(sigma_c=fn / (2 * Rb * thickness), tau_c=fs / (2 * Rb * thickness),
+                fn_crit=fn, fs_crit=fs)

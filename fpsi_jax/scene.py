@@ -49,6 +49,54 @@ class BoundaryBlock:
 
 
 @dataclass
+class SolidBlock:
+    """DEM discs (grains and bonded structures; physics.md §DEM).
+
+    x, v (n, 2), omega (n,)   positions, velocities, angular velocities
+    radius, mass, inertia     per disc (per unit thickness unless the scene says otherwise)
+    fixed (n,) bool           clamped discs: never move nor rotate
+    f_ext (n, 2)              external force (e.g. a tip load), ramped by dem.load_ramp
+    """
+
+    x: np.ndarray
+    v: np.ndarray
+    omega: np.ndarray
+    radius: np.ndarray
+    mass: np.ndarray
+    inertia: np.ndarray
+    fixed: np.ndarray
+    f_ext: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.x.shape[0])
+
+
+@dataclass
+class BondBlock:
+    """Parallel bonds between solid discs ``i[k]`` and ``j[k]`` (physics.md §Parallel bonds)."""
+
+    i: np.ndarray
+    j: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(np.asarray(self.i).shape[0])
+
+
+@dataclass
+class WallBlock:
+    """Fixed DEM line-segment walls from ``a[k]`` to ``b[k]`` (W5)."""
+
+    a: np.ndarray
+    b: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(np.asarray(self.a).shape[0])
+
+
+@dataclass
 class Scene:
     """Everything needed to start a run. Built by ``fpsi_jax.scenes.<name>(**kwargs)``.
 
@@ -65,6 +113,9 @@ class Scene:
     v_max: float
     fluid: FluidBlock | None = None
     boundary: BoundaryBlock | None = None
+    solid: SolidBlock | None = None
+    bonds: BondBlock | None = None
+    walls: WallBlock | None = None
     t_end: float = 1.0
     options: dict = field(default_factory=dict)
     builder_kwargs: dict = field(default_factory=dict)
@@ -75,35 +126,74 @@ class Scene:
         lo, hi = np.asarray(self.domain_lo, float), np.asarray(self.domain_hi, float)
         if not np.all(hi > lo):
             raise ParameterError(f"domain_hi {tuple(hi)} must exceed domain_lo {tuple(lo)}")
-        for phase in ("fluid", "boundary"):
+        for phase in ("fluid", "boundary", "solid"):
             blk = getattr(self, phase)
             if blk is None:
                 continue
             n = blk.n
             for k, a in dataclasses.asdict(blk).items():
                 a = np.asarray(a)
-                want = (n, 2) if k in ("x", "v") else (n,)
+                want = (n, 2) if k in ("x", "v", "f_ext") else (n,)
                 if a.shape != want:
                     raise ParameterError(f"{phase}.{k} has shape {a.shape}, expected {want}")
                 if not np.all(np.isfinite(a)):
                     raise ParameterError(f"{phase}.{k} contains non-finite values")
-            if np.any(blk.mass <= 0) or np.any(blk.h <= 0) or np.any(blk.rho <= 0):
-                raise ParameterError(f"{phase}: mass, h and rho must be > 0")
+            positive = ("mass", "radius", "inertia") if phase == "solid" else ("mass", "h", "rho")
+            for k in positive:
+                if np.any(np.asarray(getattr(blk, k)) <= 0):
+                    i = int(np.argmax(np.asarray(getattr(blk, k)) <= 0))
+                    raise ParameterError(f"{phase}.{k}[{i}] = {getattr(blk, k)[i]!r} out of "
+                                         "range; allowed (0, inf)")
             out = np.any((blk.x < lo) | (blk.x >= hi), axis=1)
             if out.any():
                 i = int(np.argmax(out))
                 raise ParameterError(
                     f"{phase} particle {i} at {tuple(blk.x[i])} lies outside the domain "
                     f"[{tuple(lo)}, {tuple(hi)})")
-        if self.fluid is None:
-            raise ParameterError("scene has no fluid; DEM-only scenes arrive with the DEM issue")
+        if self.fluid is None and self.solid is None:
+            raise ParameterError("scene has neither fluid nor solid particles")
         if self.fluid is not None and self.params.sph is None:
             raise ParameterError("scene has fluid but params.sph is None")
+        if self.boundary is not None and self.fluid is None:
+            raise ParameterError("scene has SPH boundary particles but no fluid")
+        if (self.solid is not None or self.walls is not None) and self.params.dem is None:
+            raise ParameterError("scene has DEM discs or walls but params.dem is None")
+        if self.walls is not None and self.solid is None:
+            raise ParameterError("scene has DEM walls but no solid discs")
+        if self.bonds is not None:
+            self._validate_bonds()
+        if self.walls is not None:
+            a, b = np.asarray(self.walls.a, float), np.asarray(self.walls.b, float)
+            if a.shape != (self.walls.n, 2) or b.shape != a.shape:
+                raise ParameterError(f"walls.a/b must have shape (n, 2), got {a.shape}, {b.shape}")
+            if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+                raise ParameterError("walls contain non-finite end points")
+            if np.any(np.linalg.norm(b - a, axis=1) <= 0):
+                raise ParameterError("a wall segment has zero length (a == b)")
         return self
+
+    def _validate_bonds(self):
+        if self.solid is None:
+            raise ParameterError("scene has bonds but no solid discs")
+        if self.params.bond is None:
+            raise ParameterError("scene has bonds but params.bond is None")
+        i, j = np.asarray(self.bonds.i), np.asarray(self.bonds.j)
+        n = self.solid.n
+        if i.shape != j.shape or i.ndim != 1:
+            raise ParameterError(f"bonds.i/j must be 1-D of equal length, got {i.shape}, {j.shape}")
+        if not (np.issubdtype(i.dtype, np.integer) and np.issubdtype(j.dtype, np.integer)):
+            raise ParameterError("bonds.i/j must be integer disc indices")
+        if np.any((i < 0) | (i >= n) | (j < 0) | (j >= n)):
+            raise ParameterError(f"bond disc index out of range; allowed [0, {n - 1}]")
+        if np.any(i == j):
+            raise ParameterError("a bond joins a disc to itself (i == j)")
+        d = np.linalg.norm(self.solid.x[j] - self.solid.x[i], axis=1)
+        if np.any(d <= 0):
+            raise ParameterError("a bond joins two coincident discs")
 
     @property
     def n_particles(self) -> int:
-        return sum(b.n for b in (self.fluid, self.boundary) if b is not None)
+        return sum(b.n for b in (self.fluid, self.boundary, self.solid) if b is not None)
 
     def to_json(self) -> str:
         return json.dumps({
@@ -112,6 +202,9 @@ class Scene:
             "v_max": self.v_max, "t_end": self.t_end, "options": _jsonable(self.options),
             "n_fluid": self.fluid.n if self.fluid else 0,
             "n_boundary": self.boundary.n if self.boundary else 0,
+            "n_solid": self.solid.n if self.solid else 0,
+            "n_bonds": self.bonds.n if self.bonds else 0,
+            "n_walls": self.walls.n if self.walls else 0,
         })
 
 
@@ -139,6 +232,7 @@ class NeighborConfig:
 
 
 BOUNDARY_PRESSURE = ("fixed", "extrapolated")
+BOND_SECTIONS = ("slab", "circular")
 
 
 @dataclass(frozen=True)
@@ -159,11 +253,16 @@ class Physics:
       h_margin             the neighbour cut-off allows h to grow to h_margin·h0
       rho_tolerance        |ρ/ρ0 − 1| above this marks a run unstable
       x64                  float64 everywhere
+
+    DEM phases (n_solid discs, n_bonds parallel bonds, n_walls line walls) and:
+      dem_neighbors        the contact family's list (cut-off 2 R_max), None without discs
+      bond_section         'slab' (2D, A = 2R̄t, I = (2/3)tR̄³) or 'circular'
+                           (A = πR̄², I = πR̄⁴/4; K6.1's Itasca beam)
     """
 
     n_fluid: int
     n_boundary: int
-    neighbors: NeighborConfig
+    neighbors: NeighborConfig | None
     kernel: str = "wendland"
     xsph: bool = True
     anticlump: bool = True
@@ -175,10 +274,15 @@ class Physics:
     h_margin: float = 1.05
     rho_tolerance: float = 0.3
     x64: bool = False
+    n_solid: int = 0
+    n_bonds: int = 0
+    n_walls: int = 0
+    dem_neighbors: NeighborConfig | None = None
+    bond_section: str = "slab"
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
                "artificial_viscosity", "boundary_pressure", "h_margin", "rho_tolerance", "x64", "skin",
-               "capacity_multiplier")
+               "capacity_multiplier", "bond_section", "dem_skin")
 
     @classmethod
     def for_scene(cls, scene: Scene, **overrides) -> "Physics":
@@ -197,19 +301,34 @@ class Physics:
         h_margin = float(opts.get("h_margin", 1.05))
         if not 1.0 <= h_margin <= 2.0:
             raise ParameterError(f"h_margin = {h_margin} out of range; allowed [1, 2]")
-        h_all = [b.h for b in (scene.fluid, scene.boundary) if b is not None]
-        h_max = float(max(np.max(h) for h in h_all)) * h_margin
-        r_cut = kernels.SUPPORT * h_max
         if not 0.0 <= skin_factor <= 2.0:
             raise ParameterError(f"skin = {skin_factor} out of range; allowed [0, 2] (× h)")
-        nb = NeighborConfig(
-            r_cut=r_cut, skin=skin_factor * h_max / h_margin,
-            origin=tuple(map(float, scene.domain_lo)),
-            box=tuple(float(h - l) for h, l in zip(scene.domain_hi, scene.domain_lo)),
-            capacity_multiplier=float(cap))
+        dem_skin = float(opts.pop("dem_skin", 0.5))
+        if not 0.0 <= dem_skin <= 2.0:
+            raise ParameterError(f"dem_skin = {dem_skin} out of range; allowed [0, 2] (× R_max)")
+        section = opts.get("bond_section", "slab")
+        if section not in BOND_SECTIONS:
+            raise ParameterError(f"bond_section must be one of {BOND_SECTIONS}, got {section!r}")
+        origin = tuple(map(float, scene.domain_lo))
+        box = tuple(float(h - l) for h, l in zip(scene.domain_hi, scene.domain_lo))
+        nb = None
+        if scene.fluid is not None:
+            h_all = [b.h for b in (scene.fluid, scene.boundary) if b is not None]
+            h_max = float(max(np.max(h) for h in h_all)) * h_margin
+            nb = NeighborConfig(r_cut=kernels.SUPPORT * h_max, skin=skin_factor * h_max / h_margin,
+                                origin=origin, box=box, capacity_multiplier=float(cap))
+        dem_nb = None
+        if scene.solid is not None:
+            r_max = float(np.max(scene.solid.radius))
+            dem_nb = NeighborConfig(r_cut=2.0 * r_max, skin=dem_skin * r_max, origin=origin,
+                                    box=box, capacity_multiplier=float(cap))
         return cls(n_fluid=scene.fluid.n if scene.fluid else 0,
                    n_boundary=scene.boundary.n if scene.boundary else 0,
-                   neighbors=nb, **opts)
+                   neighbors=nb,
+                   n_solid=scene.solid.n if scene.solid else 0,
+                   n_bonds=scene.bonds.n if scene.bonds else 0,
+                   n_walls=scene.walls.n if scene.walls else 0,
+                   dem_neighbors=dem_nb, **opts)
 
     @property
     def has_fluid(self) -> bool:
@@ -231,7 +350,15 @@ class Physics:
             m += ["sph.artificial_viscosity"] if self.artificial_viscosity else []
         if self.has_boundary:
             m += [f"boundary.{self.boundary_pressure}"]
+        if self.has_solid:
+            m += ["dem.contacts", "dem.local_damping"]
+            m += ["dem.walls"] if self.n_walls else []
+            m += ["bonds"] if self.n_bonds else []
         return tuple(m)
+
+    @property
+    def has_solid(self) -> bool:
+        return self.n_solid > 0
 
     def to_json(self) -> str:
         d = dataclasses.asdict(self)

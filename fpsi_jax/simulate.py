@@ -24,7 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import integrate, neighbors
+from . import dem, integrate, neighbors
 from .io import Writer
 from .params import ParameterError, Params
 from .scene import Physics, Scene
@@ -59,7 +59,7 @@ class Result:
     @property
     def particle_steps_per_s(self) -> float:
         """Throughput after the first chunk (which includes the compile), all particles."""
-        n = self.physics.n_fluid + self.physics.n_boundary
+        n = self.physics.n_fluid + self.physics.n_boundary + self.physics.n_solid
         steps = self.n_steps - self.first_chunk_steps
         run = self.wall_s - self.compile_s
         return n * steps / run if steps > 0 and run > 0 else float("nan")
@@ -87,22 +87,34 @@ _rollout = jax.jit(integrate.rollout, static_argnums=(0, 3, 4))
 
 
 def grow(phys: Physics, failed: State) -> Physics:
-    """Physics with a neighbour list that fits what ``failed`` (a redone chunk's end state)
+    """Physics with neighbour lists that fit what ``failed`` (a redone chunk's end state)
     ran out of: more capacity after an overflow, a larger cut-off if h outgrew it."""
-    nb = phys.neighbors
-    if bool(failed.status.h_exceeded):
-        nb = dataclasses.replace(nb, r_cut=nb.r_cut * 1.25)
-        phys = dataclasses.replace(phys, h_margin=phys.h_margin * 1.25)
-    if bool(failed.status.overflow):
-        nb = neighbors.grow(nb, failed.nbrs)
-    return dataclasses.replace(phys, neighbors=nb)
+    if phys.has_fluid:
+        nb = phys.neighbors
+        if bool(failed.status.h_exceeded):
+            nb = dataclasses.replace(nb, r_cut=nb.r_cut * 1.25)
+            phys = dataclasses.replace(phys, h_margin=phys.h_margin * 1.25)
+        if neighbors.overflowed(failed.nbrs):
+            nb = neighbors.grow(nb, failed.nbrs)
+        phys = dataclasses.replace(phys, neighbors=nb)
+    if phys.has_solid and neighbors.overflowed(failed.solid_nbrs):
+        phys = dataclasses.replace(
+            phys, dem_neighbors=neighbors.grow(phys.dem_neighbors, failed.solid_nbrs))
+    return phys
 
 
 def reallocate(phys: Physics, state: State) -> State:
-    """``state`` with its neighbour list allocated afresh for ``phys``."""
-    x = state.fluid.x if state.boundary is None else jnp.concatenate(
-        [state.fluid.x, state.boundary.x])
-    return state.replace(nbrs=neighbors.allocate(phys.neighbors, x))
+    """``state`` with its neighbour lists allocated afresh for ``phys`` (the contact shear
+    history is re-addressed to the new list by pair)."""
+    if phys.has_fluid:
+        x = state.fluid.x if state.boundary is None else jnp.concatenate(
+            [state.fluid.x, state.boundary.x])
+        state = state.replace(nbrs=neighbors.allocate(phys.neighbors, x))
+    if phys.has_solid:
+        new = neighbors.allocate(phys.dem_neighbors, state.solid.x)
+        shear = dem.remap_history(state.solid_nbrs.idx, state.solid.shear, new.idx)
+        state = state.replace(solid_nbrs=new, solid=state.solid.replace(shear=shear))
+    return state
 
 
 def simulate(scene: Scene, t_end: float | None = None, output: str | None = None,
@@ -158,7 +170,8 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
                 code = int(st.code)
                 raise SimulationError(
                     int(st.step), int(st.step) * dt, int(st.particle), STATUS_CODES[code],
-                    output=output, t_good=float(state.t))
+                    phase="solid" if code >= 6 else "fluid", output=output,
+                    t_good=float(state.t))
             state = new
             done += n
             if observe is not None:

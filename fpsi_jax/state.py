@@ -34,6 +34,58 @@ class BoundaryState:
     mass: Any
 
 
+@pytree_dataclass
+class SolidState:
+    """DEM discs (grains and structure). ``theta`` is the rotation since the start (the bonds'
+    co-rotational law needs it); ``acc``/``alpha`` are the linear and angular accelerations of
+    the last evaluation (the leapfrog's first kick). ``shear`` is the contact shear-force
+    history aligned with the contact neighbour list (n × K, keyed by the pair: it is
+    re-addressed on every rebuild), ``wall_shear`` the same for the walls (n × n_walls)."""
+
+    x: Any
+    v: Any
+    omega: Any
+    theta: Any
+    acc: Any
+    alpha: Any
+    radius: Any
+    mass: Any
+    inertia: Any
+    fixed: Any
+    f_ext: Any
+    shear: Any
+    wall_shear: Any
+
+
+@pytree_dataclass
+class BondState:
+    """Parallel bonds: disc indices, rest length and direction, intact flags, the forces of
+    the last evaluation (F̄_n tension positive, F̄_s, M̄) and the break record (time and mode:
+    0 intact, 1 tension, 2 shear)."""
+
+    i: Any
+    j: Any
+    d0: Any
+    e0: Any
+    intact: Any
+    fn: Any
+    fs: Any
+    m: Any
+    t_break: Any
+    mode: Any
+
+
+@pytree_dataclass
+class WallState:
+    """DEM line-segment walls a[k] → b[k] (fixed)."""
+
+    a: Any
+    b: Any
+
+
+BREAK_MODES = {0: "intact", 1: "tension", 2: "shear"}
+
+
 # Status codes: what went wrong first, for the host's error message.
 STATUS_CODES = {
     0: "ok",
@@ -42,6 +94,9 @@ STATUS_CODES = {
     3: "density is not finite",
     4: "density left the allowed band |rho/rho0 - 1| <= rho_tolerance",
     5: "particle left the domain",
+    6: "solid position is not finite",
+    7: "solid velocity or rotation is not finite",
+    8: "solid particle left the domain",
 }
 
 
@@ -74,7 +129,7 @@ class Status:
 @pytree_dataclass
 class State:
     """Everything that changes during a run. ``nbrs`` is the jax-md neighbour list of the SPH
-    family (rows: fluid then boundary particles)."""
+    family (rows: fluid then boundary particles), ``solid_nbrs`` that of the DEM contacts."""
 
     t: Any
     step: Any
@@ -82,3 +137,7 @@ class State:
     boundary: BoundaryState | None
     nbrs: Any
     status: Status
+    solid: SolidState | None = None
+    bonds: BondState | None = None
+    solid_nbrs: Any = None
+    walls: WallState | None = None

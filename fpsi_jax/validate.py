@@ -126,6 +126,9 @@ def dam_break(quick: bool = False, overrides: dict | None = None):
                    float(rel[k]), 0.05, bool(rel.max() < 0.05), wall, info)]
 
 
+from . import validate_solids  # noqa: E402,F401  (registers the DEM and bond cases)
+
+
 def run(names=None, quick=False, overrides=None) -> list[Record]:
     names = list(CASES) if not names else names
     out = []

@@ -4,12 +4,20 @@ from __future__ import annotations
 import inspect
 
 from ..params import ParameterError
+from .beams import bond_tension, cantilever, itasca_beam
 from .dam_break import dam_break
+from .dem_cases import collision, dry_dam_break, rolling
 from .hydrostatic_tank import hydrostatic_tank
 
 SCENES = {
     "hydrostatic_tank": hydrostatic_tank,
     "dam_break": dam_break,
+    "collision": collision,
+    "rolling": rolling,
+    "dry_dam_break": dry_dam_break,
+    "itasca_beam": itasca_beam,
+    "cantilever": cantilever,
+    "bond_tension": bond_tension,
 }
 
 
