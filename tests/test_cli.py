@@ -40,3 +40,30 @@ def test_run_writes_h5_xdmf_png(tmp_path, capsys):
     run = io.read(out)
     assert run.params["sph.mu"] == 1e-3
     assert run.time[-1] == pytest.approx(0.02, rel=0.01)
+
+
+@pytest.mark.parametrize("scene, extra", [
+    ("collision", []), ("rolling", ["--t-end", "0.02"]),
+    ("dry_dam_break", ["--t-end", "0.002"]), ("itasca_beam", ["--t-end", "0.01"]),
+    ("cantilever", ["--set", "d=0.0025", "--t-end", "0.002"]),
+    ("cantilever", ["--set", "variant=free", "--set", "d=0.0025", "--t-end", "0.002"]),
+])
+def test_run_solid_scenes(scene, extra, tmp_path):
+    """The CLI runs every DEM scene and writes solids (and bonds) to HDF5 + XDMF + PNG."""
+    out = tmp_path / f"{scene}.h5"
+    assert cli.main(["run", scene, "--out", str(out), "--plot", "--quiet"] + extra) == 0
+    run = io.read(out)
+    assert run.solid["x"].shape[0] == run.time.shape[0] >= 2
+    assert out.with_suffix(".xdmf").read_text().count('Name="solid"') == 1
+    assert out.with_suffix(".png").exists()
+    assert not run.fluid
+
+
+def test_bond_breaks_are_written(tmp_path):
+    out = tmp_path / "bt.h5"
+    assert cli.main(["run", "bond_tension", "--out", str(out), "--quiet"]) == 0
+    run = io.read(out)
+    assert len(run.breaks["bond"]) >= 1
+    assert set(run.breaks["mode"]) == {1}                      # tension
+    assert 0.49 < run.breaks["time"][0] < 0.51                 # F/A = σ̄c at t = ramp/2
+    assert run.bonds["intact"][-1].sum() < run.bonds["intact"][0].sum()
