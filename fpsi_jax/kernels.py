@@ -41,9 +41,16 @@ def wendland_dw_dr(r, h):
     return 7.0 / (4.0 * jnp.pi * h ** 3) * (-5.0 * q) * (1.0 - 0.5 * q) ** 3
 
 
+def safe_sqrt(r2):
+    """√r2 with a finite derivative at r2 = 0 (double-where: the derivative there is taken
+    as 0, which is the one-sided limit for the kernel terms that use it)."""
+    ok = r2 > 0
+    return jnp.where(ok, jnp.sqrt(jnp.where(ok, r2, 1.0)), 0.0)
+
+
 def wendland_grad_factor(r2, h):
     """(1/r) dW/dr for Wendland C2: −35/(4πh⁴) (1 − q/2)³, finite at r = 0."""
-    q = jnp.minimum(jnp.sqrt(r2) / h, SUPPORT)
+    q = jnp.minimum(safe_sqrt(r2) / h, SUPPORT)
     return -35.0 / (4.0 * jnp.pi * h ** 4) * (1.0 - 0.5 * q) ** 3
 
 
@@ -68,7 +75,7 @@ def cubic_dw_dr(r, h):
 
 def cubic_grad_factor(r2, h):
     """(1/r) dW/dr for the cubic spline, finite at r = 0."""
-    r = jnp.sqrt(r2)
+    r = safe_sqrt(r2)
     q = jnp.minimum(r / h, SUPPORT)
     s = 10.0 / (7.0 * jnp.pi * h ** 4)
     inner = -3.0 + 2.25 * q

@@ -66,7 +66,7 @@ def pairs(kern, n_fluid, x, v, h, m, rho, idx) -> Pairs:
     dx = x[:rows, None, :] - nbr[..., 0:2]
     r2 = jnp.sum(dx * dx, axis=-1)
     hij = 0.5 * (h[:rows, None] + nbr[..., 4])
-    w = kern.w(jnp.sqrt(r2), hij)
+    w = kern.w(kernels.safe_sqrt(r2), hij)
     f = kern.grad_factor(r2, hij)
     vij = v[:rows, None, :] - nbr[..., 2:4]
     return Pairs(idx, idx < n_fluid, dx, r2, hij, w, f, vij, nbr[..., 5], nbr[..., 6])
@@ -181,7 +181,7 @@ def extrapolated_boundary_pressure(n_fluid, kern, sp, gravity, x, h, rho, p, idx
     nbr = gather(jnp.concatenate([x, h[:, None], rho[:, None], p[:, None]], axis=1), idx_b,
                  fill=FAR)
     dx = xb[:, None, :] - nbr[..., 0:2]
-    r = jnp.sqrt(jnp.sum(dx * dx, axis=-1))
+    r = kernels.safe_sqrt(jnp.sum(dx * dx, axis=-1))
     w = jnp.where(idx_b < n_fluid, kern.w(r, 0.5 * (hb[:, None] + nbr[..., 2])), 0.0)
     ab = jnp.zeros_like(xb) if acc_b is None else acc_b
     g_minus_a = gravity[None, :] - ab

@@ -677,12 +677,6 @@ def test_coincident_particles_give_finite_rates():
     assert np.any(np.asarray(acc) != 0.0)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "BUG: ∂/∂x of the SPH rates is NaN when two particles coincide. sph.pairs evaluates "
-    "kern.w(jnp.sqrt(r2), h) and kernels.*_grad_factor take jnp.sqrt(r2): d√r2/dr2 = inf at "
-    "r2 = 0 and the chain rule gives 0·inf = NaN, although the rates are smooth in x there "
-    "(W and x_ij F(r) are C1 at x_ij = 0). Fix: a safe sqrt, e.g. "
-    "r = jnp.sqrt(jnp.where(r2 > 0, r2, 1)) masked back to 0, or a double-where."))
 def test_position_gradient_finite_for_coincident_particles():
     def loss(x):
         acc, xs, drho = _coincident_acc(x)
