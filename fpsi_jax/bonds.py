@@ -63,7 +63,11 @@ def bond_loads(bp, kind, x, theta, radius, i, j, d0, e0):
     ra, rb = radius[i], radius[j]
     r_bar = bond_radius(bp, ra, rb)
     area, inertia = section(kind, r_bar, bp.thickness)
-    dphi = jnp.arctan2(e0[:, 0] * n[:, 1] - e0[:, 1] * n[:, 0], jnp.sum(e0 * n, axis=-1))
+    raw = jnp.arctan2(e0[:, 0] * n[:, 1] - e0[:, 1] * n[:, 0], jnp.sum(e0 * n, axis=-1))
+    # atan2 lives in (−π, π] but the discs' rotations do not: unwrap the axis rotation to
+    # the branch nearest the discs' mean rotation, so a tumbling bonded pair stays unloaded
+    mean = 0.5 * (theta[i] + theta[j])
+    dphi = mean + jnp.arctan2(jnp.sin(raw - mean), jnp.cos(raw - mean))
     la, lb = d0 * ra / (ra + rb), d0 * rb / (ra + rb)
     us = d0 * dphi - lb * theta[j] - la * theta[i]
     fn = bp.kn * area * (d - d0)
