@@ -1,0 +1,115 @@
+"""Speed of the DEM solver: steps/s and particle-steps/s for the bonded cantilever (static
+tip-load case, float64) at d = 1.25 mm (268 discs, 465 bonds) and d = 2.5 mm, and for the
+dry dam break (33 free discs, 3 walls, float32), with compile time and neighbour rebuilds.
+
+    .venv/bin/python experiments/bench_dem.py [--steps 20000] [--dam-steps 50000] [--repeats 3]
+                                              [--cpus 0] [--out bench_dem.json]
+
+Writes experiments/results/bench_dem.json. Each case: compile (timed alone), one warm-up
+chunk of the same length (excluded: the first chunk), then ``--repeats`` timed chunks that
+continue the run; steps/s is the median over them (best and all are recorded too).
+Particle count = all discs, clamped ones included. The float32 case runs first because the
+float64 scenes switch jax_enable_x64 on for the rest of the process.
+
+``--cpus 0`` pins the process (all XLA threads) to those cores. On the 2-core VM this was
+written on, unpinned runs of these small systems came out either ~2x slow or fast from one
+process to the next (the steps are a few µs of work each, so thread hand-offs between cores
+dominate); pinned to one core they were consistently the fast figure.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import time
+
+import jax
+
+from fpsi_jax import integrate, scenes
+from fpsi_jax.simulate import grow, reallocate, setup
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def bench(name, steps, repeats, **kw):
+    sc = scenes.build(name, **kw)
+    phys, params = setup(sc)
+    p = params.as_arrays(integrate.dtype(phys))
+    st = integrate.init_state(sc, phys, p)
+    run = jax.jit(integrate.rollout, static_argnums=(0, 3, 4))
+    t0 = time.perf_counter()
+    compiled = run.lower(phys, st, p, steps, None).compile()
+    compile_s = time.perf_counter() - t0
+    while True:                                  # warm-up chunk; grow the list if it overflows
+        new, _ = compiled(st, p)
+        jax.block_until_ready(new)
+        if not bool(new.status.overflow):
+            st = new
+            break
+        phys = grow(phys, new)
+        st = reallocate(phys, st)
+        compiled = run.lower(phys, st, p, steps, None).compile()
+    r0 = int(st.status.rebuilds)
+    walls = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        st, _ = compiled(st, p)
+        jax.block_until_ready(st)
+        walls.append(time.perf_counter() - t0)
+    if bool(st.status.bad) or bool(st.status.overflow):
+        raise RuntimeError(f"{name} bench went bad: code {int(st.status.code)} particle "
+                           f"{int(st.status.particle)} step {int(st.status.step)} overflow "
+                           f"{bool(st.status.overflow)}")
+    n = sc.solid.n
+    wall = statistics.median(walls)
+    return {"case": name, "kwargs": kw, "n_discs": n, "n_clamped": int(sc.solid.fixed.sum()),
+            "n_bonds": sc.bonds.n if sc.bonds is not None else 0,
+            "n_walls": sc.walls.n if sc.walls is not None else 0,
+            "dtype": str(st.solid.x.dtype), "dt": float(params.dt),
+            "neighbour_capacity": int(st.solid_nbrs.idx.shape[1]), "steps": steps,
+            "repeats": repeats, "t_timed_from": float(steps * params.dt),
+            "t_timed_to": float(st.t), "compile_s": compile_s, "wall_s": wall,
+            "wall_s_all": walls, "steps_per_s": steps / wall,
+            "steps_per_s_best": steps / min(walls), "particle_steps_per_s": n * steps / wall,
+            "rebuilds": int(st.status.rebuilds) - r0, "steps_timed": steps * repeats}
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--steps", type=int, default=20000, help="chunk length, cantilever")
+    ap.add_argument("--dam-steps", type=int, default=50000, help="chunk length, dam break")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--cpus", type=int, nargs="*", help="pin the process to these cores")
+    ap.add_argument("--out", default="bench_dem.json", help="file in experiments/results")
+    args = ap.parse_args()
+    if args.cpus:
+        for tid in os.listdir("/proc/self/task"):     # every thread already started
+            os.sched_setaffinity(int(tid), set(args.cpus))
+    cases = [("dry_dam_break", args.dam_steps, {}), ("cantilever", args.steps, {}),
+             ("cantilever", args.steps, {"d": 0.0025})]
+    rows = []
+    for name, steps, kw in cases:
+        r = bench(name, steps, args.repeats, **kw)
+        rows.append(r)
+        print(f"{name:13s} {str(kw):14s} N={r['n_discs']:3d} bonds={r['n_bonds']:3d} "
+              f"{r['dtype']}  {r['steps_per_s']:8.0f} steps/s (best {r['steps_per_s_best']:.0f})"
+              f"  {r['particle_steps_per_s'] / 1e6:.2f} M particle-steps/s  "
+              f"rebuilds {r['rebuilds']}/{r['steps_timed']}  compile {r['compile_s']:.1f} s",
+              flush=True)
+    out = {"machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(),
+                       "processor": platform.processor(), "jax": jax.__version__,
+                       "backend": jax.default_backend(),
+                       "note": "2-core CPU shared with another user's test run while "
+                               "measured: numbers are a lower bound and noisy",
+                       "affinity": sorted(os.sched_getaffinity(0)),
+                       "pinned": bool(args.cpus), "loadavg_at_end": os.getloadavg()},
+           "rows": rows}
+    os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
+    with open(os.path.join(HERE, "results", args.out), "w") as fh:
+        json.dump(out, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()
