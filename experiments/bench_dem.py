@@ -3,7 +3,7 @@ tip-load case, float64) at d = 1.25 mm (268 discs, 465 bonds) and d = 2.5 mm, an
 dry dam break (33 free discs, 3 walls, float32), with compile time and neighbour rebuilds.
 
     .venv/bin/python experiments/bench_dem.py [--steps 20000] [--dam-steps 50000] [--repeats 3]
-                                              [--cpus 0] [--out bench_dem.json]
+    taskset -c 0 .venv/bin/python experiments/bench_dem.py        # as recorded (pinned)
 
 Writes experiments/results/bench_dem.json. Each case: compile (timed alone), one warm-up
 chunk of the same length (excluded: the first chunk), then ``--repeats`` timed chunks that
@@ -11,10 +11,11 @@ continue the run; steps/s is the median over them (best and all are recorded too
 Particle count = all discs, clamped ones included. The float32 case runs first because the
 float64 scenes switch jax_enable_x64 on for the rest of the process.
 
-``--cpus 0`` pins the process (all XLA threads) to those cores. On the 2-core VM this was
-written on, unpinned runs of these small systems came out either ~2x slow or fast from one
-process to the next (the steps are a few µs of work each, so thread hand-offs between cores
-dominate); pinned to one core they were consistently the fast figure.
+Timings on the shared 2-core VM this was written on are noisy from one process to the
+next: unpinned, the dam break ran at either ~52k or ~100k steps/s (about half the processes
+each), the cantilevers at 5.7k-6.3k (d = 1.25 mm) and 72k-91k (d = 2.5 mm) steps/s. Under
+``taskset -c 0`` (set before Python starts) the dam break was ~100k every time (17 of 17 processes);
+pinning from inside the process after ``import jax`` did not help. Cause not established.
 """
 from __future__ import annotations
 
@@ -81,12 +82,8 @@ def main():
     ap.add_argument("--steps", type=int, default=20000, help="chunk length, cantilever")
     ap.add_argument("--dam-steps", type=int, default=50000, help="chunk length, dam break")
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--cpus", type=int, nargs="*", help="pin the process to these cores")
     ap.add_argument("--out", default="bench_dem.json", help="file in experiments/results")
     args = ap.parse_args()
-    if args.cpus:
-        for tid in os.listdir("/proc/self/task"):     # every thread already started
-            os.sched_setaffinity(int(tid), set(args.cpus))
     cases = [("dry_dam_break", args.dam_steps, {}), ("cantilever", args.steps, {}),
              ("cantilever", args.steps, {"d": 0.0025})]
     rows = []
@@ -101,10 +98,10 @@ def main():
     out = {"machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(),
                        "processor": platform.processor(), "jax": jax.__version__,
                        "backend": jax.default_backend(),
-                       "note": "2-core CPU shared with another user's test run while "
-                               "measured: numbers are a lower bound and noisy",
+                       "note": "2-core VM shared with another user's test run while measured; "
+                               "process-to-process spread up to 2x (see module docstring)",
                        "affinity": sorted(os.sched_getaffinity(0)),
-                       "pinned": bool(args.cpus), "loadavg_at_end": os.getloadavg()},
+                       "loadavg_at_end": os.getloadavg()},
            "rows": rows}
     os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
     with open(os.path.join(HERE, "results", args.out), "w") as fh:

@@ -1,13 +1,15 @@
 """Dry dam break of 33 aluminium discs (Zhang et al. 2009): centre of mass vs the 4
 low-confidence experimental points, run speed, and a strip of snapshots.
 
-    .venv/bin/python experiments/dry_dam_break.py [--t-end 0.5] [--out results/dry_dam_break.h5]
+    taskset -c 0 .venv/bin/python experiments/dry_dam_break.py [--t-end 0.5] [--out results/dry_dam_break.h5]
 
 Runs scenes.build('dry_dam_break') (physical stiffness k_n = E = 69 GPa/m, dt at the DEM
 bound, float32) with the CoM (mean of state.solid.x) observed every step, writes the HDF5
 to results/ (git-ignored) and, in experiments/results/: dry_dam_break_com.csv (CoM sim and
 experiment at t = 0, 0.1, 0.3, 0.5 s and their differences), dry_dam_break_com.png and
 dry_dam_break_snapshots.png (t = 0, 0.1, ..., 0.5 s, discs at their true radius, walls).
+taskset: on a shared 2-core VM unpinned processes ran at ~50k or ~100k steps/s at random
+(see bench_dem.py); pinned to one core they were consistently fast.
 """
 from __future__ import annotations
 
@@ -40,21 +42,23 @@ def snapshots(path, times, png):
     with h5py.File(path, "r") as f:
         walls = np.stack([f["walls/a"][:], f["walls/b"][:]], axis=1)
     r = run.solid["radius"]
-    fig, axes = plt.subplots(1, len(times), figsize=(2.6 * len(times), 2.9), sharey=True)
+    box = walls.reshape(-1, 2)
+    fig, axes = plt.subplots(len(times), 1, figsize=(8, 1.45 * len(times)), sharex=True)
     for ax, t in zip(axes, times):
         k = int(np.argmin(np.abs(run.time - t)))
         ax.add_collection(PatchCollection([Circle(xy, rad) for xy, rad in
                                            zip(run.solid["x"][k], r)],
                                           facecolor="tab:orange", edgecolor="k", lw=0.3))
         ax.add_collection(LineCollection(walls, colors="k", linewidths=2))
-        ax.set_xlim(-0.005, 0.135)
-        ax.set_ylim(-0.005, 0.075)
+        ax.set_xlim(box[:, 0].min() - 0.004, box[:, 0].max() + 0.004)
+        ax.set_ylim(-0.004, 0.056)
         ax.set_aspect("equal")
-        ax.set_title(f"t = {run.time[k]:.3f} s", fontsize=9)
-        ax.set_xlabel("x [m]")
-    axes[0].set_ylabel("y [m]")
-    fig.suptitle("dry dam break, 33 Al discs d = 1 cm (left part of the 0.26 m box)",
-                 fontsize=10)
+        ax.text(0.6, 0.9, f"t = {run.time[k]:.3f} s", transform=ax.transAxes, ha="left",
+                va="top", fontsize=9)
+        ax.set_ylabel("y [m]")
+    axes[-1].set_xlabel("x [m]")
+    axes[0].set_title("dry dam break, 33 Al discs d = 1 cm, 0.26 m box (walls in black)",
+                      fontsize=10)
     fig.tight_layout()
     fig.savefig(png, dpi=150)
     plt.close(fig)
