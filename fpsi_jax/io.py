@@ -235,6 +235,7 @@ class Run:
     solid: dict
     bonds: dict
     breaks: dict
+    walls: dict
     scene: dict
     physics: dict
     params: dict
@@ -259,6 +260,7 @@ def read(path) -> Run:
         a = f.attrs
         return Run(time=f["time"][:], step=f["step"][:], fluid=fluid, boundary=boundary,
                    solid=solid, bonds=bonds, breaks=breaks,
+                   walls={k: f[f"walls/{k}"][:] for k in f["walls"]} if "walls" in f else {},
                    scene=json.loads(a["scene"]), physics=json.loads(a["physics"]),
                    params=json.loads(a["params"]), status=str(a.get("status", "")),
                    message=str(a.get("message", "")))

@@ -57,6 +57,8 @@ def test_run_solid_scenes(scene, extra, tmp_path):
     assert out.with_suffix(".xdmf").read_text().count('Name="solid"') == 1
     assert out.with_suffix(".png").exists()
     assert not run.fluid
+    if scene in ("rolling", "dry_dam_break"):
+        assert run.walls["a"].shape == run.walls["b"].shape and run.walls["a"].shape[1] == 2
 
 
 def test_bond_breaks_are_written(tmp_path):
