@@ -29,7 +29,9 @@ import time
 import jax
 
 from fpsi_jax import integrate, scenes
-from fpsi_jax.simulate import grow, reallocate, setup
+from fpsi_jax.simulate import setup
+
+from _bench import compile_and_warm_up
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -39,19 +41,8 @@ def bench(name, steps, repeats, **kw):
     phys, params = setup(sc)
     p = params.as_arrays(integrate.dtype(phys))
     st = integrate.init_state(sc, phys, p)
-    run = jax.jit(integrate.rollout, static_argnums=(0, 3, 4))
-    t0 = time.perf_counter()
-    compiled = run.lower(phys, st, p, steps, None).compile()
-    compile_s = time.perf_counter() - t0
-    while True:                                  # warm-up chunk; grow the list if it overflows
-        new, _ = compiled(st, p)
-        jax.block_until_ready(new)
-        if not bool(new.status.overflow):
-            st = new
-            break
-        phys = grow(phys, new)
-        st = reallocate(phys, st)
-        compiled = run.lower(phys, st, p, steps, None).compile()
+    # warm-up chunk (excluded from the timing); lists grown if they overflow
+    phys, st, compiled, compile_s = compile_and_warm_up(phys, st, p, steps)
     r0 = int(st.status.rebuilds)
     walls = []
     for _ in range(repeats):

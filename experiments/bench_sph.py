@@ -18,7 +18,9 @@ import jax
 import jax.numpy as jnp
 
 from fpsi_jax import integrate, scenes
-from fpsi_jax.simulate import grow, reallocate, setup
+from fpsi_jax.simulate import setup
+
+from _bench import compile_and_warm_up
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -28,21 +30,9 @@ def bench(dx, steps, **phys_opts):
     phys, params = setup(sc, **phys_opts)
     p = params.as_arrays(jnp.float32)
     st = integrate.init_state(sc, phys, p)
-    run = jax.jit(integrate.rollout, static_argnums=(0, 3, 4))
-    t0 = time.perf_counter()
-    compiled = run.lower(phys, st, p, steps, None).compile()
-    compile_s = time.perf_counter() - t0
-    # warm up into the flow (the column has started to move) before timing; grow the
-    # neighbour list as the driver would if it overflows
-    while True:
-        new, _ = compiled(st, p)
-        jax.block_until_ready(new)
-        if not (bool(new.status.overflow) or bool(new.status.h_exceeded)):
-            st = new
-            break
-        phys = grow(phys, new)
-        st = reallocate(phys, st)
-        compiled = run.lower(phys, st, p, steps, None).compile()
+    # warm up into the flow (the column has started to move) before timing; lists grown
+    # as the driver would if they overflow
+    phys, st, compiled, compile_s = compile_and_warm_up(phys, st, p, steps)
     r0 = int(st.status.rebuilds)
     t0 = time.perf_counter()
     st, _ = compiled(st, p)

@@ -66,6 +66,25 @@ def linear_contact(kn, ks, mu, beta_n, beta_s, delta, vn, vs, shear, m, dt):
             jnp.where(touch, fs, zero))
 
 
+def _contact_sum(dp, dx, valid, ra, rb, dv, omega_a, omega_b, m, shear, dt):
+    """The contact law for every (row, slot) pair, summed over slots onto the row body A.
+
+    dx = x_B − x_A, dv = v_B − v_A (n, K, 2); ra, rb radii (rb = 0 for a wall). Returns
+    (force (n, 2), torque (n,), new history (n, K), overlap (n, K))."""
+    d = _safe_norm(dx)
+    nrm = dx / jnp.where(d > 0, d, 1.0)[..., None]
+    t = perp(nrm)
+    delta = jnp.where(valid & (d > 0), ra + rb - d, -1.0)
+    la, lb = ra - 0.5 * delta, rb - 0.5 * delta
+    vn = jnp.sum(dv * nrm, axis=-1)
+    vs = jnp.sum(dv * t, axis=-1) - omega_b * lb - omega_a * la
+    fn, fs, hist = linear_contact(dp.kn, dp.ks, dp.mu, dp.beta_n, dp.beta_s, delta, vn, vs,
+                                  shear, m, dt)
+    force = -jnp.sum(fn[..., None] * nrm + fs[..., None] * t, axis=1)
+    torque = -jnp.sum(fs * la, axis=1)
+    return force, torque, hist, delta
+
+
 def disc_contacts(dp, x, v, omega, radius, mass, fixed, idx, shear, dt):
     """Disc–disc contacts over the Dense list ``idx`` (n × K, padding index n).
 
@@ -73,22 +92,9 @@ def disc_contacts(dp, x, v, omega, radius, mass, fixed, idx, shear, dt):
     n = x.shape[0]
     valid = idx < n
     j = jnp.where(valid, idx, 0)
-    dx = x[j] - x[:, None, :]
-    d = _safe_norm(dx)
-    nrm = dx / jnp.where(d > 0, d, 1.0)[..., None]
-    t = perp(nrm)
-    ra, rb = radius[:, None], radius[j]
-    delta = jnp.where(valid & (d > 0), ra + rb - d, -1.0)
-    la, lb = ra - 0.5 * delta, rb - 0.5 * delta
-    dv = v[j] - v[:, None, :]
-    vn = jnp.sum(dv * nrm, axis=-1)
-    vs = jnp.sum(dv * t, axis=-1) - omega[j] * lb - omega[:, None] * la
     m = reduced_mass(mass[:, None], mass[j], fixed[:, None], fixed[j])
-    fn, fs, hist = linear_contact(dp.kn, dp.ks, dp.mu, dp.beta_n, dp.beta_s, delta, vn, vs,
-                                  shear, m, dt)
-    force = -jnp.sum(fn[..., None] * nrm + fs[..., None] * t, axis=1)
-    torque = -jnp.sum(fs * la, axis=1)
-    return force, torque, hist, delta
+    return _contact_sum(dp, x[j] - x[:, None, :], valid, radius[:, None], radius[j],
+                        v[j] - v[:, None, :], omega[:, None], omega[j], m, shear, dt)
 
 
 def wall_geometry(x, a, b):
@@ -102,21 +108,10 @@ def wall_geometry(x, a, b):
 def wall_contacts(dp, x, v, omega, radius, mass, a, b, shear, dt):
     """Disc–wall contacts (W5): the wall is body B, at rest, with zero radius and infinite
     mass. Returns (force (n, 2), torque (n,), new history (n, W), overlap (n, W))."""
-    dx = wall_geometry(x, a, b)
-    d = _safe_norm(dx)
-    nrm = dx / jnp.where(d > 0, d, 1.0)[..., None]
-    t = perp(nrm)
-    delta = jnp.where(d > 0, radius[:, None] - d, -1.0)
-    la = radius[:, None] - 0.5 * delta
-    dv = -v[:, None, :]
-    vn = jnp.sum(dv * nrm, axis=-1)
-    vs = jnp.sum(dv * t, axis=-1) - omega[:, None] * la
-    m = jnp.broadcast_to(mass[:, None], delta.shape)
-    fn, fs, hist = linear_contact(dp.kn, dp.ks, dp.mu, dp.beta_n, dp.beta_s, delta, vn, vs,
-                                  shear, m, dt)
-    force = -jnp.sum(fn[..., None] * nrm + fs[..., None] * t, axis=1)
-    torque = -jnp.sum(fs * la, axis=1)
-    return force, torque, hist, delta
+    shape = shear.shape
+    return _contact_sum(dp, wall_geometry(x, a, b), True, radius[:, None], 0.0,
+                        jnp.broadcast_to(-v[:, None, :], shape + (2,)), omega[:, None], 0.0,
+                        jnp.broadcast_to(mass[:, None], shape), shear, dt)
 
 
 def remap_history(old_idx, old_hist, new_idx):

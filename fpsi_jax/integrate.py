@@ -333,9 +333,7 @@ def dem_dt(scene: Scene, params: Params, section: str = "slab") -> float:
     kn, ks = float(dp.kn), float(dp.ks)
     k_rot = ks * r * r
     if scene.bonds is not None and bp is not None:
-        r_bar = float(bp.lam) * r
-        A, I = (2 * r_bar * float(bp.thickness), 2.0 / 3.0 * float(bp.thickness) * r_bar ** 3) \
-            if section == "slab" else (np.pi * r_bar ** 2, 0.25 * np.pi * r_bar ** 4)
+        A, I = map(float, bonds_mod.section(section, float(bp.lam) * r, float(bp.thickness)))
         kn += float(bp.kn) * A
         ks += float(bp.ks) * A
         k_rot = float(bp.kn) * I + ks * r * r

@@ -86,20 +86,20 @@ def rolling(quick: bool = False, overrides: dict | None = None):
 
 
 # --- static beams ------------------------------------------------------------------------
-def tip_observer(mask, y0):
-    return lambda s: np.float64(0) + (s.solid.x[mask, 1].mean() - y0)
+def tip_run(scene, phys, tip):
+    """Run ``scene`` observing the mean vertical displacement of the discs ``tip`` every
+    step; returns (displacements, result, wall seconds)."""
+    y0 = float(scene.solid.x[tip, 1].mean())
+    t0 = time.perf_counter()
+    res = simulate(scene, progress=False, **phys, observe=lambda s: s.solid.x[tip, 1].mean() - y0)
+    return np.asarray(res.observations), res, time.perf_counter() - t0
 
 
 @register("itasca_beam", "K6.1 / Itasca 11-ball parallel-bond beam, tip deflection (0.2 %)")
 def itasca_beam(quick: bool = False, overrides: dict | None = None):
     scene, phys = ov.build("itasca_beam", overrides or {})
-    tip = np.abs(scene.solid.f_ext[:, 1]) > 0
-    y0 = float(scene.solid.x[tip, 1].mean())
-    t0 = time.perf_counter()
-    res = simulate(scene, progress=False, **phys, observe=lambda s: s.solid.x[tip, 1].mean() - y0)
-    wall = time.perf_counter() - t0
+    y, res, wall = tip_run(scene, phys, np.abs(scene.solid.f_ext[:, 1]) > 0)
     kw = scene.builder_kwargs
-    y = np.asarray(res.observations)
     E = kw["kn_bar"] * 2 * kw["radius"]
     I = math.pi * kw["bond_radius"] ** 4 / 4
     L = 2 * kw["radius"] * (kw["n_balls"] - 1)
@@ -115,12 +115,7 @@ def itasca_beam(quick: bool = False, overrides: dict | None = None):
 
 def cantilever_static(overrides=None, base=None):
     scene, phys = ov.build("cantilever", overrides or {}, {"variant": "tip", **(base or {})})
-    tip = np.abs(scene.solid.f_ext[:, 1]) > 0
-    y0 = float(scene.solid.x[tip, 1].mean())
-    t0 = time.perf_counter()
-    res = simulate(scene, progress=False, **phys, observe=lambda s: s.solid.x[tip, 1].mean() - y0)
-    wall = time.perf_counter() - t0
-    y = np.asarray(res.observations)
+    y, res, wall = tip_run(scene, phys, np.abs(scene.solid.f_ext[:, 1]) > 0)
     return -float(y[-1]), abs(float(y[-1] - y[int(0.9 * len(y))])) / abs(float(y[-1])), \
         scene, res, wall
 
@@ -147,12 +142,7 @@ def cantilever_frequency(quick: bool = False, overrides: dict | None = None):
     base = {"variant": "free", **({"d": 0.0025} if quick else {})}
     scene, phys = ov.build("cantilever", overrides or {}, base)
     x = scene.solid.x
-    tip = np.abs(x[:, 0] - x[:, 0].max()) < 1e-9
-    y0 = float(x[tip, 1].mean())
-    t0 = time.perf_counter()
-    res = simulate(scene, progress=False, **phys, observe=lambda s: s.solid.x[tip, 1].mean() - y0)
-    wall = time.perf_counter() - t0
-    y = np.asarray(res.observations)
+    y, res, wall = tip_run(scene, phys, np.abs(x[:, 0] - x[:, 0].max()) < 1e-9)
     dt = float(res.params.dt)
     tc = _crossings(dt * np.arange(1, len(y) + 1), y)
     f = (len(tc) - 1) / (tc[-1] - tc[0])

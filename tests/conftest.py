@@ -24,3 +24,31 @@ def float64():
     jax.config.update("jax_enable_x64", True)
     yield
     jax.config.update("jax_enable_x64", prev)
+
+
+@pytest.fixture(scope="session")
+def step_hlo():
+    """``step_hlo(scene, dtype=float32, **physics_options) -> (text, scopes, files)``: the
+    lowered ``integrate.step`` of a scene, the ``jax.named_scope`` components of its op
+    locations ("jit(step)/dem.contacts/...") and the Python files its ops were traced from.
+    Proves a mechanism is absent from the compiled program."""
+    import re
+
+    import jax.numpy as jnp
+
+    from fpsi_jax import integrate
+    from fpsi_jax.simulate import setup
+
+    def lower(scene, dtype=jnp.float32, **opts):
+        phys, params = setup(scene, **opts)
+        p = params.as_arrays(dtype)
+        st = integrate.init_state(scene, phys, p)
+        text = jax.jit(integrate.step, static_argnums=0).lower(phys, st, p).as_text(
+            debug_info=True)
+        scopes = set()
+        for loc in re.findall(r'loc\("(jit\(step\)/[^"]*)"', text):
+            scopes.update(loc.split("/"))
+        files = {os.path.basename(f) for f in re.findall(r'loc\("([^"]+\.py)"', text)}
+        return text, scopes, files
+
+    return lower

@@ -6,8 +6,6 @@ agreement with the incremental law K17–K20 for small displacements, fracture i
 stays broken, the break is recorded) and gradients with respect to k̄_n (float64).
 """
 import math
-import os
-import re
 
 import jax
 import jax.numpy as jnp
@@ -18,7 +16,6 @@ from fpsi_jax import bonds, integrate, scenes
 from fpsi_jax.params import BondParams, DemParams, Params
 from fpsi_jax.scene import BondBlock, Physics, Scene
 from fpsi_jax.scenes._solids import disc_block
-from fpsi_jax.simulate import setup
 
 pytestmark = pytest.mark.usefixtures("float64")  # conftest: x64 for this module only
 
@@ -458,17 +455,8 @@ def test_grad_of_rollout_tip_displacement_wrt_bond_kn():
     assert g == pytest.approx(fd, rel=1e-5)
 
 
-def test_bonded_scene_compiles_bonds():
-    sc = scenes.build("bond_tension", n_discs=3)
-    phys, params = setup(sc)
-    p = params.as_arrays(jnp.float64)
-    st = integrate.init_state(sc, phys, p)
-    txt = jax.jit(integrate.step, static_argnums=0).lower(phys, st, p).as_text(
-        debug_info=True)
-    scopes = set()
-    for loc in re.findall(r'loc\("(jit\(step\)/[^"]*)"', txt):
-        scopes.update(loc.split("/"))
-    files = {os.path.basename(f) for f in re.findall(r'loc\("([^"]+\.py)"', txt)}
+def test_bonded_scene_compiles_bonds(step_hlo):
+    _, scopes, files = step_hlo(scenes.build("bond_tension", n_discs=3), jnp.float64)
     assert {"bonds", "dem.contacts"} <= scopes
     assert "bonds.py" in files and "sph.py" not in files
     assert not [s for s in scopes if s.startswith("sph.")]

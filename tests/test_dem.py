@@ -7,8 +7,6 @@ conservation of momentum and angular momentum in a closed cluster with friction,
 third law per pair, and that a DEM-only scene compiles no SPH (and a fluid-only none DEM).
 """
 import math
-import os
-import re
 
 import jax
 import jax.numpy as jnp
@@ -19,7 +17,6 @@ from fpsi_jax import dem, integrate, scenes
 from fpsi_jax.params import DemParams, Params
 from fpsi_jax.scene import Physics, Scene, WallBlock
 from fpsi_jax.scenes._solids import disc_block
-from fpsi_jax.simulate import setup
 
 pytestmark = pytest.mark.usefixtures("float64")  # conftest: x64 for this module only
 
@@ -495,23 +492,8 @@ def test_newton_third_law_per_pair(cluster_run):
 
 
 # --- compiled program: absent phases are absent -------------------------------------------
-def _hlo(scene, dtype=jnp.float64, **opts):
-    """(named scopes, source files) of the lowered step. Scopes are the components of the
-    op locations "jit(step)/dem.contacts/..."; files those of the traced Python lines."""
-    phys, params = setup(scene, **opts)
-    p = params.as_arrays(dtype)
-    st = integrate.init_state(scene, phys, p)
-    txt = jax.jit(integrate.step, static_argnums=0).lower(phys, st, p).as_text(
-        debug_info=True)
-    scopes = set()
-    for loc in re.findall(r'loc\("(jit\(step\)/[^"]*)"', txt):
-        scopes.update(loc.split("/"))
-    files = {os.path.basename(f) for f in re.findall(r'loc\("([^"]+\.py)"', txt)}
-    return scopes, files
-
-
-def test_dem_only_scene_compiles_no_sph():
-    scopes, files = _hlo(scenes.build("collision"))
+def test_dem_only_scene_compiles_no_sph(step_hlo):
+    _, scopes, files = step_hlo(scenes.build("collision"), jnp.float64)
     for want in ("dem.contacts", "dem.local_damping", "integrate.solid_kick_drift",
                  "neighbors.dem_update"):
         assert want in scopes, want
@@ -519,12 +501,12 @@ def test_dem_only_scene_compiles_no_sph():
     for absent in ("integrate.kick_drift", "neighbors.update", "dem.walls", "bonds"):
         assert absent not in scopes, absent
     assert "dem.py" in files and "sph.py" not in files and "kernels.py" not in files
-    scopes_w, files_w = _hlo(scenes.build("rolling"))
+    _, scopes_w, files_w = step_hlo(scenes.build("rolling"), jnp.float64)
     assert "dem.walls" in scopes_w and "sph.py" not in files_w
 
 
-def test_fluid_only_scene_compiles_no_dem(tiny_tank):
-    scopes, files = _hlo(tiny_tank, dtype=jnp.float32)
+def test_fluid_only_scene_compiles_no_dem(tiny_tank, step_hlo):
+    _, scopes, files = step_hlo(tiny_tank)
     assert "sph.continuity" in scopes and "sph.pressure" in scopes
     assert not [s for s in scopes if s.startswith("dem.")]
     for absent in ("bonds", "integrate.solid_kick_drift", "neighbors.dem_update"):

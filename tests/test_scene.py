@@ -1,25 +1,14 @@
 """Physics is derived from the scene; absent mechanisms are absent from the compiled step."""
-import jax
-import jax.numpy as jnp
 import pytest
 
-from fpsi_jax import integrate, scenes
+from fpsi_jax import scenes
 from fpsi_jax.params import ParameterError
 from fpsi_jax.scene import Physics
-from fpsi_jax.simulate import setup
 
 
-def lowered_text(scene, **opts):
-    phys, params = setup(scene, **opts)
-    p = params.as_arrays(jnp.float32)
-    st = integrate.init_state(scene, phys, p)
-    return jax.jit(integrate.step, static_argnums=0).lower(phys, st, p).as_text(
-        debug_info=True)
-
-
-def test_switched_off_terms_are_not_compiled(tiny_tank):
-    off = lowered_text(tiny_tank, delta_sph=False, artificial_viscosity=False, xsph=False)
-    on = lowered_text(tiny_tank, delta_sph=True, artificial_viscosity=True, xsph=True)
+def test_switched_off_terms_are_not_compiled(tiny_tank, step_hlo):
+    off = step_hlo(tiny_tank, delta_sph=False, artificial_viscosity=False, xsph=False)[0]
+    on = step_hlo(tiny_tank, delta_sph=True, artificial_viscosity=True, xsph=True)[0]
     for scope in ("sph.delta", "sph.artificial_viscosity", "sph.xsph"):
         assert scope in on
         assert scope not in off
@@ -29,9 +18,9 @@ def test_switched_off_terms_are_not_compiled(tiny_tank):
     assert "sph.continuity" in off and "sph.pressure" in off
 
 
-def test_fixed_boundary_has_no_extrapolation(tiny_tank):
-    fixed = lowered_text(tiny_tank, boundary_pressure="fixed")
-    extra = lowered_text(tiny_tank, boundary_pressure="extrapolated")
+def test_fixed_boundary_has_no_extrapolation(tiny_tank, step_hlo):
+    fixed = step_hlo(tiny_tank, boundary_pressure="fixed")[0]
+    extra = step_hlo(tiny_tank, boundary_pressure="extrapolated")[0]
     assert "boundary.extrapolated" in extra and "boundary.extrapolated" not in fixed
 
 

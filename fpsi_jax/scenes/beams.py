@@ -69,7 +69,7 @@ def beam_discs(length, height, d, packing="hex", clamp_columns=3):
     x = (hex_packing if packing == "hex" else square_packing)(0.0, 0.0, width, height, d)
     # put a tip disc of the top row (hex: of the rows like it) at x = length
     top = x[:, 1] == x[:, 1].max()
-    x[:, 0] += length - x[top, 0].max() + (0.0 if packing == "square" else 0.0)
+    x[:, 0] += length - x[top, 0].max()
     tol = 1e-9 * d
     x = x[x[:, 0] <= length + tol]
     clamp_limit = -(clamp_columns - 1) * d - tol
