@@ -30,6 +30,7 @@ whole-step velocities. Clamped discs keep v = ω = 0.
 """
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import jax
@@ -37,10 +38,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import bonds as bonds_mod
-from . import dem, kernels, neighbors, sph
+from . import dem, fsi, kernels, neighbors, sph
 from .params import ParameterError, Params
 from .scene import Physics, Scene
-from .state import BondState, BoundaryState, FluidState, SolidState, State, Status, WallState
+from .state import (BondState, BoundaryState, FluidState, FsiState, SolidState, State, Status,
+                    WallState)
 
 
 def dtype(phys: Physics):
@@ -48,23 +50,40 @@ def dtype(phys: Physics):
     return jnp.float64 if phys.x64 else jnp.float32
 
 
-def _cat(fluid_a, boundary_a):
-    return fluid_a if boundary_a is None else jnp.concatenate([fluid_a, boundary_a])
+def _cat(*parts):
+    """Concatenate the per-family arrays that are present (None: family absent)."""
+    parts = [p for p in parts if p is not None]
+    return parts[0] if len(parts) == 1 else jnp.concatenate(parts)
+
+
+def sph_positions(state: State):
+    """Positions of the SPH family in list order: fluid, boundary, structure."""
+    b, f = state.boundary, state.fsi
+    return _cat(state.fluid.x, None if b is None else b.x,
+                None if f is None else state.solid.x[f.idx])
 
 
 # --- forces ------------------------------------------------------------------------------
-def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nbrs, dt):
+def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nbrs, dt,
+                 structure=None):
     """One SPH evaluation at positions ``x`` and velocities ``v`` (v½ in a step):
-    returns (ρ', h', a', δv_XSPH, boundary) with ρ' = ρ + dt Dρ/Dt (dt = 0: no drift)."""
+    returns (ρ', h', a', δv_XSPH, boundary, fsi) with ρ' = ρ + dt Dρ/Dt (dt = 0: no drift).
+
+    ``structure`` = (x_S, v_S, FsiState) puts the structure discs into the sums (fsi.py);
+    the returned FsiState then carries the fluid's force on them (and, for the pressure
+    approximation, their new P_S and ρ_S)."""
     sp, kern, nf = params.sph, kernels.get(phys.kernel), phys.n_fluid
     g = jnp.asarray(params.gravity)
     b = boundary
-    all_x = _cat(x, None if b is None else b.x)
-    all_v = _cat(v, None if b is None else jnp.zeros_like(b.x))
-    all_h = _cat(h, None if b is None else b.h)
-    all_m = _cat(mass, None if b is None else b.mass)
+    nb = 0 if b is None else b.x.shape[0]
+    xs_, vs_, fs = structure if structure is not None else (None, None, None)
+    opt = lambda blk, k: None if blk is None else getattr(blk, k)
+    all_x = _cat(x, opt(b, "x"), xs_)
+    all_v = _cat(v, None if b is None else jnp.zeros_like(b.x), vs_)
+    all_h = _cat(h, opt(b, "h"), opt(fs, "h"))
+    all_m = _cat(mass, opt(b, "mass"), opt(fs, "mass"))
     pr = sph.pairs(kern, nf, all_x, all_v, all_h, all_m,
-                   _cat(rho, None if b is None else b.rho), nbrs.idx[:nf])
+                   _cat(rho, opt(b, "rho"), opt(fs, "rho")), nbrs.idx[:nf])
     drho = sph.density_rate(phys, sp, rho, pr)
     rho_new = rho + dt * drho
     if phys.variable_h:
@@ -77,19 +96,30 @@ def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nb
     if b is not None and phys.boundary_pressure == "extrapolated":
         with jax.named_scope("boundary.extrapolated"):
             pb, rhob = sph.extrapolated_boundary_pressure(
-                nf, kern, sp, g, all_x, all_h, _cat(rho_new, b.rho), _cat(p_new, b.p),
-                nbrs.idx[nf:])
+                nf, kern, sp, g, all_x, all_h, _cat(rho_new, b.rho, opt(fs, "rho")),
+                _cat(p_new, b.p, opt(fs, "p")), nbrs.idx[nf:nf + nb])
         b = b.replace(p=pb, rho=rhob)
-    acc, xs = sph.momentum_rate(phys, kern, sp, g, _cat(rho_new, None if b is None else b.rho),
-                                _cat(p_new, None if b is None else b.p), pr)
-    return rho_new, h_new, acc, xs, b
+    if fs is not None and phys.fsi == "pressure_approximation":
+        with jax.named_scope("fsi.pressure_approximation"):
+            ps, rhos = fsi.approximate_pressure(
+                kern, nf, all_x, all_h, _cat(rho_new, opt(b, "rho"), fs.rho),
+                _cat(p_new, opt(b, "p"), fs.p), all_m, nbrs.idx[nf + nb:], sp)
+        fs = fs.replace(p=ps, rho=rhos)
+    acc, xs, pair = sph.momentum_rate(
+        phys, kern, sp, g, _cat(rho_new, opt(b, "rho"), opt(fs, "rho")),
+        _cat(p_new, opt(b, "p"), opt(fs, "p")), pr, with_pairs=fs is not None)
+    if fs is not None:
+        with jax.named_scope("fsi.reaction"):
+            fs = fs.replace(force=fsi.reaction(pair, mass, pr.idx, nf + nb, phys.n_structure))
+    return rho_new, h_new, acc, xs, b, fs
 
 
 # --- DEM forces ---------------------------------------------------------------------------
 def solid_update(phys: Physics, params: Params, solid: SolidState, x, v, omega, theta, shear,
-                 idx, walls: WallState | None, bonds: BondState | None, t, dt):
+                 idx, walls: WallState | None, bonds: BondState | None, t, dt, f_fluid=None):
     """All forces on the discs at (x, θ, v, ω): returns (a, α, shear history, wall shear
-    history, bonds). ``dt`` is the shear-spring increment (0: no increment)."""
+    history, bonds). ``dt`` is the shear-spring increment (0: no increment); ``f_fluid``
+    (n, 2) the fluid's force on each disc (held over the DEM sub-steps), or None."""
     dp = params.dem
     with jax.named_scope("dem.contacts"):
         force, torque, shear, _ = dem.disc_contacts(dp, x, v, omega, solid.radius, solid.mass,
@@ -112,6 +142,8 @@ def solid_update(phys: Physics, params: Params, solid: SolidState, x, v, omega, 
         force, torque = force + fb, torque + tb
     g = jnp.asarray(params.gravity, x.dtype)
     force = force + solid.mass[:, None] * g + solid.f_ext * dem.load_factor(dp.load_ramp, t)
+    if f_fluid is not None:
+        force = force + f_fluid
     with jax.named_scope("dem.local_damping"):
         force = dem.local_damping(dp.alpha, force, v)
         torque = dem.local_damping(dp.alpha, torque, omega)
@@ -121,26 +153,57 @@ def solid_update(phys: Physics, params: Params, solid: SolidState, x, v, omega, 
     return acc, alpha, shear, wall_shear, bonds
 
 
-def _solid_step(phys: Physics, state: State, params: Params, t):
-    dt = params.dt
-    s = state.solid
+def _solid_step(phys: Physics, params: Params, s: SolidState, bonds, nbrs_old, walls, t, dt,
+                f_fluid=None):
+    """One DEM kick–drift–kick of length ``dt`` ending at time ``t``."""
     with jax.named_scope("integrate.solid_kick_drift"):
         v_half = s.v + 0.5 * dt * s.acc
         w_half = s.omega + 0.5 * dt * s.alpha
         x_new = s.x + dt * v_half
         th_new = s.theta + dt * w_half
     with jax.named_scope("neighbors.dem_update"):
-        nbrs, rebuilt = neighbors.update(phys.dem_neighbors, state.solid_nbrs, x_new)
+        nbrs, rebuilt = neighbors.update(phys.dem_neighbors, nbrs_old, x_new)
         shear = jax.lax.cond(rebuilt, dem.remap_history, lambda o, h, n: h,
-                             state.solid_nbrs.idx, s.shear, nbrs.idx)
+                             nbrs_old.idx, s.shear, nbrs.idx)
     acc, alpha, shear, wshear, bonds = solid_update(
-        phys, params, s, x_new, v_half, w_half, th_new, shear, nbrs.idx, state.walls,
-        state.bonds, t, dt)
+        phys, params, s, x_new, v_half, w_half, th_new, shear, nbrs.idx, walls, bonds, t, dt,
+        f_fluid)
     with jax.named_scope("integrate.solid_kick"):
         solid = s.replace(x=x_new, theta=th_new, v=v_half + 0.5 * dt * acc,
                           omega=w_half + 0.5 * dt * alpha, acc=acc, alpha=alpha, shear=shear,
                           wall_shear=wshear)
     return solid, bonds, nbrs, rebuilt
+
+
+def fluid_force_on_discs(phys: Physics, state: State):
+    """The fluid's force on every disc (n_solid, 2) from the last SPH evaluation, or None."""
+    if not phys.has_fsi:
+        return None
+    return jnp.zeros_like(state.solid.x).at[state.fsi.idx].add(state.fsi.force)
+
+
+def _solid_substeps(phys: Physics, state: State, params: Params):
+    """``phys.dem_substeps`` DEM steps of Δt/n covering one SPH step (multi-rate stepping),
+    the fluid's force on the structure held at its value of the last SPH evaluation.
+    Returns (solid, bonds, list, rebuilds, overflow)."""
+    n = phys.dem_substeps
+    dts = params.dt / n
+    f_fluid = fluid_force_on_discs(phys, state)
+
+    def one(k, carry):
+        solid, bonds, nbrs, rebuilds, overflow = carry
+        t = state.t + (k + 1) * dts
+        solid, bonds, nbrs, rb = _solid_step(phys, params, solid, bonds, nbrs, state.walls,
+                                             t, dts, f_fluid)
+        return (solid, bonds, nbrs, rebuilds + rb.astype(jnp.int32),
+                overflow | nbrs.did_buffer_overflow.astype(bool))
+
+    carry = (state.solid, state.bonds, state.solid_nbrs, jnp.zeros((), jnp.int32),
+             jnp.zeros((), bool))
+    if n == 1:
+        return one(0, carry)
+    with jax.named_scope("integrate.dem_substeps"):
+        return jax.lax.fori_loop(0, n, one, carry)
 
 
 # --- health ------------------------------------------------------------------------------
@@ -184,43 +247,53 @@ def _check_solid(phys: Physics, solid: SolidState, step, status: Status) -> Stat
 
 # --- the step ----------------------------------------------------------------------------
 def _fluid_step(phys: Physics, state: State, params: Params):
+    """The SPH leapfrog step; with a coupling, the structure discs enter at their positions
+    and velocities in ``state`` (already advanced to the end of the step)."""
     dt = params.dt
     f = state.fluid
     with jax.named_scope("integrate.kick_drift"):
         v_half = f.v + 0.5 * dt * f.acc
         x_new = f.x + dt * (v_half + f.xsph)
+    structure = None
+    if phys.has_fsi:
+        k = state.fsi.idx
+        structure = (state.solid.x[k], state.solid.v[k], state.fsi)
     with jax.named_scope("neighbors.update"):
-        all_x = _cat(x_new, None if state.boundary is None else state.boundary.x)
+        all_x = _cat(x_new, None if state.boundary is None else state.boundary.x,
+                     None if structure is None else structure[0])
         nbrs, rebuilt = neighbors.update(phys.neighbors, state.nbrs, all_x)
-    rho, h, acc, xs, b = fluid_update(phys, params, x_new, v_half, f.rho, f.h, f.mass,
-                                      state.boundary, nbrs, dt)
+    rho, h, acc, xs, b, fs = fluid_update(phys, params, x_new, v_half, f.rho, f.h, f.mass,
+                                          state.boundary, nbrs, dt, structure)
     with jax.named_scope("integrate.kick"):
         fluid = f.replace(x=x_new, v=v_half + 0.5 * dt * acc, rho=rho, h=h, acc=acc, xsph=xs)
-    return fluid, b, nbrs, rebuilt
+    return fluid, b, nbrs, rebuilt, fs
 
 
 def step(phys: Physics, state: State, params: Params) -> State:
     """Advance one time step (see the module docstring). Pure: (State, Params) → State.
     Only the phases the scene has are traced: a DEM-only scene compiles no SPH and a
-    fluid-only scene no DEM."""
+    fluid-only scene no DEM.
+
+    With both phases the discs go first, in ``phys.dem_substeps`` sub-steps under the fluid
+    force of the last SPH evaluation; the fluid then steps against the structure at the end
+    of the step and returns the new force (a staggered, force-holding multi-rate scheme)."""
     n = state.step + 1
     t = n * params.dt
     st = state.status
     new = state.replace(t=t, step=n)
+    if phys.has_solid:
+        solid, bonds, snbrs, rebuilt, overflow = _solid_substeps(phys, state, params)
+        st = st.replace(overflow=st.overflow | overflow, rebuilds=st.rebuilds + rebuilt)
+        st = _check_solid(phys, solid, n, st)
+        new = new.replace(solid=solid, bonds=bonds, solid_nbrs=snbrs)
     if phys.has_fluid:
-        fluid, b, nbrs, rebuilt = _fluid_step(phys, state, params)
+        fluid, b, nbrs, rebuilt, fs = _fluid_step(phys, new, params)
         st = st.replace(overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool),
                         h_exceeded=st.h_exceeded
                         | (jnp.max(fluid.h) * 2.0 > phys.neighbors.r_cut),
                         rebuilds=st.rebuilds + rebuilt.astype(jnp.int32))
         st = _check(phys, params, fluid, n, st)
-        new = new.replace(fluid=fluid, boundary=b, nbrs=nbrs)
-    if phys.has_solid:
-        solid, bonds, snbrs, rebuilt = _solid_step(phys, state, params, t)
-        st = st.replace(overflow=st.overflow | snbrs.did_buffer_overflow.astype(bool),
-                        rebuilds=st.rebuilds + rebuilt.astype(jnp.int32))
-        st = _check_solid(phys, solid, n, st)
-        new = new.replace(solid=solid, bonds=bonds, solid_nbrs=snbrs)
+        new = new.replace(fluid=fluid, boundary=b, nbrs=nbrs, fsi=fs)
     return new.replace(status=st)
 
 
@@ -245,17 +318,23 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
     dt_ = dtype(phys)
     a = lambda v: jnp.asarray(v, dtype=dt_)
     z = jnp.zeros_like
-    fluid = boundary = nbrs = solid = bonds = walls = snbrs = None
+    fluid = boundary = nbrs = solid = bonds = walls = snbrs = fsi_state = None
     if scene.fluid is not None:
         fl = scene.fluid
         b = scene.boundary
         boundary = None if b is None else BoundaryState(
             x=a(b.x), rho=a(b.rho), p=a(b.p), h=a(b.h), mass=a(b.mass))
         x = a(fl.x)
-        all_x = x if boundary is None else jnp.concatenate([x, boundary.x])
-        nbrs = neighbors.allocate(phys.neighbors, all_x)
         fluid = FluidState(x=x, v=a(fl.v), rho=a(fl.rho), h=a(fl.h), mass=a(fl.mass),
                            acc=z(x), xsph=z(x))
+        if phys.has_fsi:
+            k = scene.solid.structure_indices()
+            rho0 = float(scene.params.sph.rho0)
+            ns = k.size
+            fsi_state = FsiState(
+                idx=jnp.asarray(k, jnp.int32), mass=a(rho0 * scene.solid.volumes()[k]),
+                h=a(np.full(ns, float(np.max(fl.h)))), rho=a(np.full(ns, rho0)),
+                p=a(np.zeros(ns)), force=a(np.zeros((ns, 2))))
     if scene.solid is not None:
         so = scene.solid
         x = a(so.x)
@@ -278,24 +357,31 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
                               fn=jnp.zeros(nb, dt_), fs=jnp.zeros(nb, dt_), m=jnp.zeros(nb, dt_),
                               t_break=jnp.full(nb, -1.0, dt_), mode=jnp.zeros(nb, jnp.int32))
     state = State(t=a(0.0), step=jnp.zeros((), jnp.int32), fluid=fluid, boundary=boundary,
-                  nbrs=nbrs, status=Status.ok(), solid=solid, bonds=bonds, solid_nbrs=snbrs,
-                  walls=walls)
+                  nbrs=None, status=Status.ok(), solid=solid, bonds=bonds, solid_nbrs=snbrs,
+                  walls=walls, fsi=fsi_state)
+    if fluid is not None:
+        state = state.replace(nbrs=neighbors.allocate(phys.neighbors, sph_positions(state)))
     return refresh_rates(phys, state, params)
 
 
 def refresh_rates(phys: Physics, state: State, params: Params) -> State:
-    """Recompute the stored accelerations (and XSPH correction) at the current state (after
-    init or a reallocation); positions, densities, h and histories are left as they are."""
+    """Recompute the stored accelerations (and XSPH correction, and the fluid's force on the
+    structure) at the current state (after init or a reallocation); positions, densities, h
+    and histories are left as they are."""
     if phys.has_fluid:
         f = state.fluid
-        _, _, acc, xs, b = fluid_update(phys, params, f.x, f.v, f.rho, f.h, f.mass,
-                                        state.boundary, state.nbrs, 0.0)
-        state = state.replace(fluid=f.replace(acc=acc, xsph=xs), boundary=b)
+        structure = None
+        if phys.has_fsi:
+            k = state.fsi.idx
+            structure = (state.solid.x[k], state.solid.v[k], state.fsi)
+        _, _, acc, xs, b, fs = fluid_update(phys, params, f.x, f.v, f.rho, f.h, f.mass,
+                                            state.boundary, state.nbrs, 0.0, structure)
+        state = state.replace(fluid=f.replace(acc=acc, xsph=xs), boundary=b, fsi=fs)
     if phys.has_solid:
         s = state.solid
         acc, alpha, _, _, _ = solid_update(phys, params, s, s.x, s.v, s.omega, s.theta, s.shear,
                                            state.solid_nbrs.idx, state.walls, state.bonds,
-                                           state.t, 0.0)
+                                           state.t, 0.0, fluid_force_on_discs(phys, state))
         state = state.replace(solid=s.replace(acc=acc, alpha=alpha))
     return state
 
@@ -345,24 +431,35 @@ def dem_dt(scene: Scene, params: Params, section: str = "slab") -> float:
 
 
 def stable_dt(scene: Scene, params: Params | None = None, a_max: float | None = None,
-              section: str | None = None) -> float:
-    """Largest time step allowed by the explicit bounds of the phases the scene has."""
+              section: str | None = None, substeps: int = 1) -> float:
+    """Largest time step allowed by the explicit bounds of the phases the scene has; with
+    ``substeps`` DEM sub-steps per step the DEM bound counts ``substeps`` times."""
     p = params or scene.params
     bounds = []
     if scene.fluid is not None:
         bounds.append(sph_dt(scene, p, a_max))
     if scene.solid is not None:
         sec = section or scene.options.get("bond_section", "slab")
-        bounds.append(dem_dt(scene, p, sec))
+        bounds.append(substeps * dem_dt(scene, p, sec))
     return float(min(bounds))
 
 
-def check_dt(scene: Scene, dt: float, params: Params | None = None) -> None:
-    bound = stable_dt(scene, params)
+def substeps_for(scene: Scene, dt: float, params: Params | None = None) -> int:
+    """Fewest DEM sub-steps that keep dt/n under the DEM bound (1 without both phases)."""
+    if scene.fluid is None or scene.solid is None:
+        return 1
+    p = params or scene.params
+    bound = dem_dt(scene, p, scene.options.get("bond_section", "slab"))
+    return max(1, int(math.ceil(dt / bound * (1.0 - 1e-12))))
+
+
+def check_dt(scene: Scene, dt: float, params: Params | None = None, substeps: int = 1) -> None:
+    bound = stable_dt(scene, params, substeps=substeps)
     if not dt > 0:
         raise ParameterError(f"dt = {dt} out of range; allowed (0, {bound:.4g}] s")
     if dt > bound * (1 + 1e-9):
+        sub = f" with dem_substeps = {substeps}" if substeps > 1 else ""
         raise ParameterError(
-            f"dt = {dt:.4g} s exceeds the stability bound {bound:.4g} s "
-            "(SPH: 0.25 h/(c0+|v|max), 0.125 h²/ν, 0.25 √(h/|a|max); DEM: 0.2 √(m/k)); "
-            f"allowed (0, {bound:.4g}] s")
+            f"dt = {dt:.4g} s exceeds the stability bound {bound:.4g} s{sub} "
+            "(SPH: 0.25 h/(c0+|v|max), 0.125 h²/ν, 0.25 √(h/|a|max); DEM: 0.2 √(m/k) per "
+            f"sub-step); allowed (0, {bound:.4g}] s")

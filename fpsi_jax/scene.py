@@ -56,6 +56,11 @@ class SolidBlock:
     radius, mass, inertia     per disc (per unit thickness unless the scene says otherwise)
     fixed (n,) bool           clamped discs: never move nor rotate
     f_ext (n, 2)              external force (e.g. a tip load), ramped by dem.load_ramp
+    structure (n,) bool       discs that take part in the SPH sums as boundary-like particles
+                              when the scene couples fluid and structure (Scene.options
+                              'fsi'); None: all of them
+    sph_volume (n,)           area each structure disc stands for in the SPH sums (its packing
+                              cell, e.g. d² for a square packing); None: (2R)²
     """
 
     x: np.ndarray
@@ -66,10 +71,21 @@ class SolidBlock:
     inertia: np.ndarray
     fixed: np.ndarray
     f_ext: np.ndarray
+    structure: np.ndarray | None = None
+    sph_volume: np.ndarray | None = None
 
     @property
     def n(self) -> int:
         return int(self.x.shape[0])
+
+    def structure_indices(self) -> np.ndarray:
+        s = np.ones(self.n, bool) if self.structure is None else np.asarray(self.structure, bool)
+        return np.nonzero(s)[0].astype(np.int32)
+
+    def volumes(self) -> np.ndarray:
+        if self.sph_volume is None:
+            return (2.0 * np.asarray(self.radius, float)) ** 2
+        return np.broadcast_to(np.asarray(self.sph_volume, float), (self.n,)).copy()
 
 
 @dataclass
@@ -132,6 +148,8 @@ class Scene:
                 continue
             n = blk.n
             for k, a in dataclasses.asdict(blk).items():
+                if a is None:
+                    continue
                 a = np.asarray(a)
                 want = (n, 2) if k in ("x", "v", "f_ext") else (n,)
                 if a.shape != want:
@@ -160,6 +178,17 @@ class Scene:
             raise ParameterError("scene has DEM discs or walls but params.dem is None")
         if self.walls is not None and self.solid is None:
             raise ParameterError("scene has DEM walls but no solid discs")
+        method = self.options.get("fsi")
+        if method is not None:
+            from .fsi import METHODS
+            if method not in METHODS:
+                raise ParameterError(f"fsi must be one of {METHODS}, got {method!r}")
+            if self.fluid is None or self.solid is None:
+                raise ParameterError("option fsi needs both fluid and solid discs in the scene")
+            if self.solid.structure_indices().size == 0:
+                raise ParameterError("option fsi is set but no disc is marked as structure")
+            if np.any(self.solid.volumes() <= 0):
+                raise ParameterError("solid.sph_volume out of range; allowed (0, inf)")
         if self.bonds is not None:
             self._validate_bonds()
         if self.walls is not None:
@@ -205,6 +234,8 @@ class Scene:
             "n_solid": self.solid.n if self.solid else 0,
             "n_bonds": self.bonds.n if self.bonds else 0,
             "n_walls": self.walls.n if self.walls else 0,
+            "n_structure": (int(self.solid.structure_indices().size)
+                            if self.solid is not None and self.options.get("fsi") else 0),
         })
 
 
@@ -279,10 +310,13 @@ class Physics:
     n_walls: int = 0
     dem_neighbors: NeighborConfig | None = None
     bond_section: str = "slab"
+    fsi: str | None = None
+    n_structure: int = 0
+    dem_substeps: int = 1
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
                "artificial_viscosity", "boundary_pressure", "h_margin", "rho_tolerance", "x64", "skin",
-               "capacity_multiplier", "bond_section", "dem_skin")
+               "capacity_multiplier", "bond_section", "dem_skin", "fsi", "dem_substeps")
 
     @classmethod
     def for_scene(cls, scene: Scene, **overrides) -> "Physics":
@@ -306,6 +340,21 @@ class Physics:
         dem_skin = float(opts.pop("dem_skin", 0.5))
         if not 0.0 <= dem_skin <= 2.0:
             raise ParameterError(f"dem_skin = {dem_skin} out of range; allowed [0, 2] (× R_max)")
+        n_sub = opts.get("dem_substeps", 1)
+        if n_sub is None:
+            opts.pop("dem_substeps")
+        elif not (isinstance(n_sub, (int, np.integer)) and 1 <= n_sub <= 10000):
+            raise ParameterError(f"dem_substeps = {n_sub!r} out of range; allowed integers "
+                                 "[1, 10000]")
+        method = opts.get("fsi")
+        n_structure = 0
+        if method is not None:
+            from .fsi import METHODS
+            if method not in METHODS:
+                raise ParameterError(f"fsi must be one of {METHODS}, got {method!r}")
+            if scene.fluid is None or scene.solid is None:
+                raise ParameterError("option fsi needs both fluid and solid discs in the scene")
+            n_structure = int(scene.solid.structure_indices().size)
         section = opts.get("bond_section", "slab")
         if section not in BOND_SECTIONS:
             raise ParameterError(f"bond_section must be one of {BOND_SECTIONS}, got {section!r}")
@@ -328,7 +377,7 @@ class Physics:
                    n_solid=scene.solid.n if scene.solid else 0,
                    n_bonds=scene.bonds.n if scene.bonds else 0,
                    n_walls=scene.walls.n if scene.walls else 0,
-                   dem_neighbors=dem_nb, **opts)
+                   dem_neighbors=dem_nb, n_structure=n_structure, **opts)
 
     @property
     def has_fluid(self) -> bool:
@@ -354,7 +403,13 @@ class Physics:
             m += ["dem.contacts", "dem.local_damping"]
             m += ["dem.walls"] if self.n_walls else []
             m += ["bonds"] if self.n_bonds else []
+        if self.has_fsi:
+            m += [f"fsi.{self.fsi}"]
         return tuple(m)
+
+    @property
+    def has_fsi(self) -> bool:
+        return self.fsi is not None and self.n_structure > 0
 
     @property
     def has_solid(self) -> bool:

@@ -67,16 +67,29 @@ class Result:
 
 def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
           **physics_overrides):
-    """Validate the scene and settings and return (Physics, Params with dt, dtype).
-    Every check happens here, before anything is compiled."""
+    """Validate the scene and settings and return (Physics, Params with dt).
+    Every check happens here, before anything is compiled.
+
+    With fluid and discs together the step is multi-rate: ``dt`` is the SPH step (default:
+    the SPH bound) and the discs take ``dem_substeps`` sub-steps of dt/n inside it, n the
+    fewest that keep dt/n under the DEM bound unless the caller fixes it (``dem_substeps=1``
+    is the single-rate run, whose default dt is then the smaller of the two bounds)."""
     scene.validate()
     phys = Physics.for_scene(scene, **physics_overrides)
     params = (params or scene.params)
-    bound = integrate.stable_dt(scene, params)
+    opts = {**scene.options, **physics_overrides}
+    given = opts.get("dem_substeps") is not None
+    n_sub = int(opts["dem_substeps"]) if given else 1
     if dt is None:
-        dt = bound
-    else:
-        integrate.check_dt(scene, float(dt), params)
+        if phys.has_fluid and phys.has_solid and not given:
+            dt = integrate.sph_dt(scene, params)
+            n_sub = integrate.substeps_for(scene, dt, params)
+        else:
+            dt = integrate.stable_dt(scene, params, substeps=n_sub)
+    elif phys.has_fluid and phys.has_solid and not given:
+        n_sub = integrate.substeps_for(scene, float(dt), params)
+    integrate.check_dt(scene, float(dt), params, substeps=n_sub)
+    phys = dataclasses.replace(phys, dem_substeps=n_sub)
     params = params.replace(dt=float(dt)).validate()
     if phys.x64:
         jax.config.update("jax_enable_x64", True)
@@ -107,9 +120,8 @@ def reallocate(phys: Physics, state: State) -> State:
     """``state`` with its neighbour lists allocated afresh for ``phys`` (the contact shear
     history is re-addressed to the new list by pair)."""
     if phys.has_fluid:
-        x = state.fluid.x if state.boundary is None else jnp.concatenate(
-            [state.fluid.x, state.boundary.x])
-        state = state.replace(nbrs=neighbors.allocate(phys.neighbors, x))
+        state = state.replace(nbrs=neighbors.allocate(phys.neighbors,
+                                                      integrate.sph_positions(state)))
     if phys.has_solid:
         new = neighbors.allocate(phys.dem_neighbors, state.solid.x)
         shear = dem.remap_history(state.solid_nbrs.idx, state.solid.shear, new.idx)

@@ -86,26 +86,41 @@ def delta_diffusion(delta, c0, rho_i, pr: Pairs):
     return delta * c0 * jnp.sum(jnp.where(pr.fluid_j, pr.hij * s, 0.0), axis=1)
 
 
+def pressure_pairs(m_j, coef, dx, f):
+    """Pair terms −m_j (P_i/ρ_i² + P_j/ρ_j² + R_ij) ∇_iW_ij (W43, K34); ``coef`` is the bracket."""
+    return -(m_j * coef * f)[..., None] * dx
+
+
 def pressure_acc(m_j, coef, dx, f):
     """−Σ_j m_j (P_i/ρ_i² + P_j/ρ_j² + R_ij) ∇_iW_ij (W43, K34); ``coef`` is the bracket."""
-    return -jnp.sum((m_j * coef * f)[..., None] * dx, axis=1)
+    return jnp.sum(pressure_pairs(m_j, coef, dx, f), axis=1)
+
+
+def viscous_pairs(mu_i, mu_j, rho_i, rho_j, pr: Pairs):
+    """Pair terms of the Morris viscosity (K36), see :func:`viscous_acc`."""
+    s = (pr.m_j * (mu_i + mu_j) * pr.r2 * pr.f
+         / (rho_i[:, None] * rho_j * (pr.r2 + 0.01 * pr.hij ** 2)))
+    return s[..., None] * pr.vij
 
 
 def viscous_acc(mu_i, mu_j, rho_i, rho_j, pr: Pairs):
     """Morris viscosity (K36): Σ_j m_j (μ_i+μ_j) v_ij (x_ij·∇_iW_ij)/(ρ_iρ_j(r²+0.01h²))."""
-    s = (pr.m_j * (mu_i + mu_j) * pr.r2 * pr.f
-         / (rho_i[:, None] * rho_j * (pr.r2 + 0.01 * pr.hij ** 2)))
-    return jnp.sum(s[..., None] * pr.vij, axis=1)
+    return jnp.sum(viscous_pairs(mu_i, mu_j, rho_i, rho_j, pr), axis=1)
+
+
+def artificial_viscosity_pairs(alpha, c0, rho_i, rho_j, pr: Pairs):
+    """Pair terms of :func:`artificial_viscosity`."""
+    vx = jnp.sum(pr.vij * pr.dx, axis=-1)
+    mu_ij = pr.hij * jnp.minimum(vx, 0.0) / (pr.r2 + 0.01 * pr.hij ** 2)
+    pi_ij = -alpha * c0 * mu_ij / (0.5 * (rho_i[:, None] + rho_j))
+    return -(pr.m_j * pi_ij * pr.f)[..., None] * pr.dx
 
 
 def artificial_viscosity(alpha, c0, rho_i, rho_j, pr: Pairs):
     """Monaghan (1992) artificial viscosity, the option DualSPHysics users know:
     −Σ_j m_j Π_ij ∇_iW_ij, Π_ij = −α c0 μ_ij/ρ̄_ij for approaching pairs (v_ij·x_ij < 0),
     μ_ij = h_ij v_ij·x_ij/(r² + 0.01h²). Not in the seeds; off unless Physics says so."""
-    vx = jnp.sum(pr.vij * pr.dx, axis=-1)
-    mu_ij = pr.hij * jnp.minimum(vx, 0.0) / (pr.r2 + 0.01 * pr.hij ** 2)
-    pi_ij = -alpha * c0 * mu_ij / (0.5 * (rho_i[:, None] + rho_j))
-    return -jnp.sum((pr.m_j * pi_ij * pr.f)[..., None] * pr.dx, axis=1)
+    return jnp.sum(artificial_viscosity_pairs(alpha, c0, rho_i, rho_j, pr), axis=1)
 
 
 def anticlump(r, p_i, rho_i, p_j, rho_j, w, w_dp):
@@ -139,16 +154,24 @@ def density_rate(phys, sp, rho_i, pr: Pairs):
     return drho
 
 
-def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs):
+def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False):
     """dv/dt (pressure with anti-clump, Morris viscosity, gravity; W43, K34–K38) and the
-    XSPH correction of the fluid rows. ``rho``/``p`` cover all particles (fluid, boundary)
-    at the new time level."""
+    XSPH correction of the fluid rows. ``rho``/``p`` cover all particles (fluid, boundary,
+    structure) at the new time level. With a fluid–structure coupling (``phys.fsi``) the
+    fluid–structure pairs use its pressure bracket (see ``fsi``). Returns (a, δv_XSPH,
+    pair accelerations (rows, K, 2) if ``with_pairs`` else None)."""
+    from . import fsi
     rows = pr.idx.shape[0]
     rho_i, p_i = rho[:rows], p[:rows]
     rp = gather(jnp.stack([rho, p], axis=1), pr.idx)   # second (small) gather: new ρ, P
     rho_j, p_j = rp[..., 0], rp[..., 1]
     with jax.named_scope("sph.pressure"):
-        coef = (p_i / rho_i ** 2)[:, None] + p_j / rho_j ** 2
+        if phys.fsi is not None:
+            is_s = fsi.structure_mask(pr.idx, phys.n_fluid + phys.n_boundary, phys.n_structure)
+            with jax.named_scope("fsi." + phys.fsi):
+                coef = fsi.pressure_coefficient(phys.fsi, p_i, rho_i, p_j, rho_j, is_s)
+        else:
+            coef = (p_i / rho_i ** 2)[:, None] + p_j / rho_j ** 2
         if phys.anticlump:
             with jax.named_scope("sph.anticlump"):
                 r_ij = anticlump(sp.r_clump, p_i, rho_i, p_j, rho_j, pr.w,
@@ -156,19 +179,19 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs):
                 if not phys.anticlump_boundary:
                     r_ij = jnp.where(pr.fluid_j, r_ij, 0.0)
                 coef = coef + r_ij
-        acc = pressure_acc(pr.m_j, coef, pr.dx, pr.f)
+        pair = pressure_pairs(pr.m_j, coef, pr.dx, pr.f)
     with jax.named_scope("sph.viscosity"):
-        acc = acc + viscous_acc(sp.mu, sp.mu, rho_i, rho_j, pr)
+        pair = pair + viscous_pairs(sp.mu, sp.mu, rho_i, rho_j, pr)
     if phys.artificial_viscosity:
         with jax.named_scope("sph.artificial_viscosity"):
-            acc = acc + artificial_viscosity(sp.alpha, sp.c0, rho_i, rho_j, pr)
-    acc = acc + gravity
+            pair = pair + artificial_viscosity_pairs(sp.alpha, sp.c0, rho_i, rho_j, pr)
+    acc = jnp.sum(pair, axis=1) + gravity
     if phys.xsph:
         with jax.named_scope("sph.xsph"):
             xs = xsph_correction(sp.eps_xsph, rho_i, rho_j, pr)
     else:
         xs = jnp.zeros_like(acc)
-    return acc, xs
+    return acc, xs, (pair if with_pairs else None)
 
 
 def extrapolated_boundary_pressure(n_fluid, kern, sp, gravity, x, h, rho, p, idx_b,
@@ -176,8 +199,10 @@ def extrapolated_boundary_pressure(n_fluid, kern, sp, gravity, x, h, rho, p, idx
     """Boundary pressure from the fluid (Adami, Hu & Adams 2012, Eq. 27):
     P_b = (Σ_f P_f W_bf + (g − a_b)·Σ_f ρ_f x_bf W_bf) / Σ_f W_bf, clamped at P ≥ 0 so a
     wall never pulls the fluid; ρ_b from the inverted EOS. Rows without fluid get P = 0.
-    ``x, h, rho, p`` cover all particles; ``idx_b`` is the (n_b, K) list of boundary rows."""
-    xb, hb = x[n_fluid:], h[n_fluid:]
+    ``x, h, rho, p`` cover all particles; ``idx_b`` is the (n_b, K) list of boundary rows,
+    which follow the n_fluid fluid rows."""
+    nb = idx_b.shape[0]
+    xb, hb = x[n_fluid:n_fluid + nb], h[n_fluid:n_fluid + nb]
     nbr = gather(jnp.concatenate([x, h[:, None], rho[:, None], p[:, None]], axis=1), idx_b,
                  fill=FAR)
     dx = xb[:, None, :] - nbr[..., 0:2]

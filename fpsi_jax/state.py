@@ -83,6 +83,21 @@ class WallState:
     b: Any
 
 
+@pytree_dataclass
+class FsiState:
+    """Structure discs as SPH particles (``fsi.py``): which discs (``idx`` into the solid
+    arrays), their SPH mass ρ0 V_S, smoothing length, density and pressure (constant for the
+    stationary method, K41 every step for the pressure approximation), and ``force``, the
+    fluid's force on each of them at the last SPH evaluation: the DEM sub-steps hold it."""
+
+    idx: Any
+    mass: Any
+    h: Any
+    rho: Any
+    p: Any
+    force: Any
+
+
 BREAK_MODES = {0: "intact", 1: "tension", 2: "shear"}
 
 
@@ -129,7 +144,7 @@ class Status:
 @pytree_dataclass
 class State:
     """Everything that changes during a run. ``nbrs`` is the jax-md neighbour list of the SPH
-    family (rows: fluid then boundary particles), ``solid_nbrs`` that of the DEM contacts."""
+    family (rows: fluid, boundary, then structure particles), ``solid_nbrs`` that of the DEM contacts."""
 
     t: Any
     step: Any
@@ -141,3 +156,4 @@ class State:
     bonds: BondState | None = None
     solid_nbrs: Any = None
     walls: WallState | None = None
+    fsi: FsiState | None = None

@@ -133,7 +133,7 @@ def _ref(i, sp=SP, **kw):
 
 def _momentum(phys, sp=None, gravity=(0.0, 0.0), idx=IDX, p=P):
     sp = _sp() if sp is None else sp
-    return sph.momentum_rate(phys, KERN, sp, _a(gravity), _a(RHO), _a(p), _pairs(idx))
+    return sph.momentum_rate(phys, KERN, sp, _a(gravity), _a(RHO), _a(p), _pairs(idx))[:2]
 
 
 def test_module_runs_in_float64():
@@ -251,7 +251,7 @@ def test_pressure_acc_two_particles_closed_form():
     x = _a([[0.0, 0.0], [h, 0.0]])
     pr = sph.pairs(KERN, 2, x, jnp.zeros((2, 2)), _a([h, h]), _a([m, m]), _a([rho, rho]),
                    jnp.asarray([[1], [0]]))
-    acc, _ = sph.momentum_rate(_phys(n_fluid=2, n_boundary=0, **OFF), KERN, _sp(mu=0.0),
+    acc, _, _ = sph.momentum_rate(_phys(n_fluid=2, n_boundary=0, **OFF), KERN, _sp(mu=0.0),
                                _a([0.0, 0.0]), _a([rho, rho]), _a([p, p]), pr)
     f = -35.0 / (32.0 * math.pi * h ** 4)       # F at q = 1: −35/(4πh⁴)·(1/2)³
     ax = -m * (2 * p / rho ** 2) * (-h) * f     # x_01 = (−h, 0): pushes 0 to −x
@@ -396,7 +396,7 @@ def test_padded_slots_contribute_exactly_zero():
     for k, idx in idx_lists.items():
         pr = _pairs(idx)
         drho = sph.density_rate(phys, sp, _a(RHO_OLD[:NF]), pr)
-        acc, xs = sph.momentum_rate(phys, KERN, sp, _a(G), _a(RHO), _a(P), pr)
+        acc, xs, _ = sph.momentum_rate(phys, KERN, sp, _a(G), _a(RHO), _a(P), pr)
         out[k] = (np.asarray(drho), np.asarray(acc), np.asarray(xs))
         pad = np.asarray(pr.idx) == 3
         assert np.all(np.asarray(pr.w)[pad] == 0.0) and np.all(np.asarray(pr.f)[pad] == 0.0)
@@ -513,7 +513,7 @@ def test_newton_third_law_random_configuration():
     pr = sph.pairs(KERN, n, _a(c["x"]), _a(c["v"]), _a(c["h"]), _a(c["m"]),
                    _a(c["rho_old"]), jnp.asarray(c["idx"]))
     phys = _phys(n_fluid=n, n_boundary=0, **ALL_ON)
-    acc, xs = sph.momentum_rate(phys, KERN, sp, _a([0.0, 0.0]), _a(c["rho"]), _a(p), pr)
+    acc, xs, _ = sph.momentum_rate(phys, KERN, sp, _a([0.0, 0.0]), _a(c["rho"]), _a(p), pr)
     ma = c["m"][:, None] * np.asarray(acc)
     assert np.sum(np.abs(ma)) > 0
     assert np.all(np.abs(ma.sum(0)) < 1e-12 * np.sum(np.abs(ma)))
@@ -521,7 +521,7 @@ def test_newton_third_law_random_configuration():
     for flags, kw in [(OFF, dict(mu=0.0)), (OFF, dict(r_clump=0.0)),
                       ({**OFF, "anticlump": True}, dict(mu=0.0)),
                       ({**OFF, "artificial_viscosity": True}, dict(mu=0.0))]:
-        a1, _ = sph.momentum_rate(_phys(n_fluid=n, n_boundary=0, **flags), KERN,
+        a1, _, _ = sph.momentum_rate(_phys(n_fluid=n, n_boundary=0, **flags), KERN,
                                   sp.replace(**{k: jnp.float64(v) for k, v in kw.items()}),
                                   _a([0.0, 0.0]), _a(c["rho"]), _a(p), pr)
         ma1 = c["m"][:, None] * np.asarray(a1)
@@ -531,7 +531,7 @@ def test_newton_third_law_random_configuration():
     mx = c["m"][:, None] * np.asarray(xs)
     assert np.all(np.abs(mx.sum(0)) < 1e-12 * np.sum(np.abs(mx)))
     # pressure, anti-clump and artificial viscosity are central forces: no net torque
-    a_c, _ = sph.momentum_rate(
+    a_c, _, _ = sph.momentum_rate(
         _phys(n_fluid=n, n_boundary=0, anticlump=True, artificial_viscosity=True,
               xsph=False), KERN, sp.replace(mu=jnp.float64(0.0)), _a([0.0, 0.0]),
         _a(c["rho"]), _a(p), pr)
@@ -550,7 +550,7 @@ def test_newton_third_law_matches_reference_sums():
     pr = sph.pairs(KERN, n, _a(c["x"]), _a(c["v"]), _a(c["h"]), _a(c["m"]),
                    _a(c["rho_old"]), jnp.asarray(c["idx"]))
     phys = _phys(n_fluid=n, n_boundary=0, **ALL_ON)
-    acc, xs = sph.momentum_rate(phys, KERN, _sp(**spd), _a([0.0, 0.0]), _a(c["rho"]),
+    acc, xs, _ = sph.momentum_rate(phys, KERN, _sp(**spd), _a([0.0, 0.0]), _a(c["rho"]),
                                 _a(p), pr)
     drho = sph.density_rate(phys, _sp(**spd), _a(c["rho_old"]), pr)
     for i in range(n):
@@ -624,7 +624,7 @@ def test_gradient_of_momentum_rate_wrt_mu_c0_alpha():
         mu, c0, alpha = theta
         sp = _sp(dp=c["dp"]).replace(mu=mu, c0=c0, alpha=alpha)
         p = sph.eos_pressure(rho, sp.rho0, c0, sp.gamma)
-        acc, _ = sph.momentum_rate(phys, KERN, sp, _a([0.0, 0.0]), rho, p, pr)
+        acc, _, _ = sph.momentum_rate(phys, KERN, sp, _a([0.0, 0.0]), rho, p, pr)
         return jnp.sum(acc ** 2)
 
     _fd_check(loss, [0.05, 20.0, 0.3])
@@ -658,7 +658,7 @@ def _coincident_acc(x):
     pr = sph.pairs(KERN, n, x, _a(V), _a([0.005] * 3), _a([0.025] * 3), _a(RHO_OLD),
                    jnp.asarray([[1, 2, 3], [0, 2, 3], [0, 1, 3]]))
     phys = _phys(n_fluid=n, n_boundary=0, **ALL_ON)
-    acc, xs = sph.momentum_rate(phys, KERN, _sp(), _a([0.0, 0.0]), _a(RHO), _a(P), pr)
+    acc, xs, _ = sph.momentum_rate(phys, KERN, _sp(), _a([0.0, 0.0]), _a(RHO), _a(P), pr)
     drho = sph.density_rate(phys, _sp(), _a(RHO_OLD), pr)
     return acc, xs, drho
 
@@ -672,7 +672,7 @@ def test_coincident_particles_give_finite_rates():
     pr = sph.pairs(KERN, 3, _a(XC), _a(V), _a([0.005] * 3), _a([0.025] * 3), _a(RHO_OLD),
                    jnp.asarray([[2, 3, 3], [2, 3, 3], [0, 1, 3]]))
     phys = _phys(n_fluid=3, n_boundary=0, **ALL_ON)
-    a2, _ = sph.momentum_rate(phys, KERN, _sp(), _a([0.0, 0.0]), _a(RHO), _a(P), pr)
+    a2, _, _ = sph.momentum_rate(phys, KERN, _sp(), _a([0.0, 0.0]), _a(RHO), _a(P), pr)
     np.testing.assert_allclose(np.asarray(acc), np.asarray(a2), rtol=1e-14)
     assert np.any(np.asarray(acc) != 0.0)
 
