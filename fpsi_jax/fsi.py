@@ -23,7 +23,18 @@ Three methods (K §5), chosen per scene (``Physics.fsi``):
 ``pressure_approximation``  (K41) P_S = Σ_F P_F W_SF m_F/ρ_F (not normalised, as K writes it),
                             ρ_S from the inverted Tait EOS, then the ordinary pressure term.
 
-In all three the continuity equation and the Morris viscosity include the fluid–structure
+A fourth method is ours, not K's:
+
+``extrapolated``            the structure particles get the pressure the tank walls get
+                            (Adami, Hu & Adams 2012): P_S = (Σ_F P_F W_SF + (g − a_S)·Σ_F ρ_F
+                            x_SF W_SF)/Σ_F W_SF, clamped at P ≥ 0, ρ_S from the inverted EOS,
+                            then the ordinary pressure term. K40 and K41 give a wall about half
+                            the pressure it should (K41 is not normalised; K40 drops P_S), so
+                            a fluid column compresses into the structure until the near-wall
+                            pressure has doubled, and it leaks through a 5 mm plate at the
+                            seeds' resolution (README, design section).
+
+In all of them the continuity equation and the Morris viscosity include the fluid–structure
 pairs (the structure is a moving wall for the fluid); anti-clump, XSPH and δ-SPH stay
 fluid–fluid. SPH boundary particles and DEM walls never interact with the discs.
 """
@@ -33,7 +44,7 @@ import jax.numpy as jnp
 
 from . import kernels, sph
 
-METHODS = ("stationary", "pressure_gradient", "pressure_approximation")
+METHODS = ("stationary", "pressure_gradient", "pressure_approximation", "extrapolated")
 
 
 def structure_mask(idx, first, n_structure):

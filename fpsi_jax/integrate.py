@@ -69,14 +69,14 @@ def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nb
     """One SPH evaluation at positions ``x`` and velocities ``v`` (v½ in a step):
     returns (ρ', h', a', δv_XSPH, boundary, fsi) with ρ' = ρ + dt Dρ/Dt (dt = 0: no drift).
 
-    ``structure`` = (x_S, v_S, FsiState) puts the structure discs into the sums (fsi.py);
+    ``structure`` = (x_S, v_S, a_S, FsiState) puts the structure discs into the sums (fsi.py);
     the returned FsiState then carries the fluid's force on them (and, for the pressure
     approximation, their new P_S and ρ_S)."""
     sp, kern, nf = params.sph, kernels.get(phys.kernel), phys.n_fluid
     g = jnp.asarray(params.gravity)
     b = boundary
     nb = 0 if b is None else b.x.shape[0]
-    xs_, vs_, fs = structure if structure is not None else (None, None, None)
+    xs_, vs_, as_, fs = structure if structure is not None else (None, None, None, None)
     opt = lambda blk, k: None if blk is None else getattr(blk, k)
     all_x = _cat(x, opt(b, "x"), xs_)
     all_v = _cat(v, None if b is None else jnp.zeros_like(b.x), vs_)
@@ -99,6 +99,13 @@ def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nb
                 nf, kern, sp, g, all_x, all_h, _cat(rho_new, b.rho, opt(fs, "rho")),
                 _cat(p_new, b.p, opt(fs, "p")), nbrs.idx[nf:nf + nb])
         b = b.replace(p=pb, rho=rhob)
+    if fs is not None and phys.fsi == "extrapolated":
+        with jax.named_scope("fsi.extrapolated"):
+            ps, rhos = sph.extrapolated_boundary_pressure(
+                nf, kern, sp, g, all_x, all_h, _cat(rho_new, opt(b, "rho"), fs.rho),
+                _cat(p_new, opt(b, "p"), fs.p), nbrs.idx[nf + nb:], acc_b=as_,
+                first=nf + nb)
+        fs = fs.replace(p=ps, rho=rhos)
     if fs is not None and phys.fsi == "pressure_approximation":
         with jax.named_scope("fsi.pressure_approximation"):
             ps, rhos = fsi.approximate_pressure(
@@ -257,7 +264,7 @@ def _fluid_step(phys: Physics, state: State, params: Params):
     structure = None
     if phys.has_fsi:
         k = state.fsi.idx
-        structure = (state.solid.x[k], state.solid.v[k], state.fsi)
+        structure = (state.solid.x[k], state.solid.v[k], state.solid.acc[k], state.fsi)
     with jax.named_scope("neighbors.update"):
         all_x = _cat(x_new, None if state.boundary is None else state.boundary.x,
                      None if structure is None else structure[0])
@@ -373,7 +380,7 @@ def refresh_rates(phys: Physics, state: State, params: Params) -> State:
         structure = None
         if phys.has_fsi:
             k = state.fsi.idx
-            structure = (state.solid.x[k], state.solid.v[k], state.fsi)
+            structure = (state.solid.x[k], state.solid.v[k], state.solid.acc[k], state.fsi)
         _, _, acc, xs, b, fs = fluid_update(phys, params, f.x, f.v, f.rho, f.h, f.mass,
                                             state.boundary, state.nbrs, 0.0, structure)
         state = state.replace(fluid=f.replace(acc=acc, xsph=xs), boundary=b, fsi=fs)

@@ -233,7 +233,7 @@ def shear_modulus(E, nu):
     return E / (2.0 * (1.0 + nu))
 
 
-def k42_mapping(E, nu, radius, lam=1.0, plate=False, contact_fraction=None):
+def k42_mapping(E, nu, radius, lam=1.0, plate=False, contact_fraction=None, plane_strain=False):
     """Bond and contact stiffnesses of K42–K43 for equal discs of radius R (R_A + R_B = 2R):
     k̄_n = E/(2R), k̄_s = G/(2R), k_n = E·2R̄/(2R) = λE, k_s = λG.
 
@@ -245,15 +245,24 @@ def k42_mapping(E, nu, radius, lam=1.0, plate=False, contact_fraction=None):
     total stiffness as W26–W30 do instead: A k̄ + k = K42's A k̄ with k = c A k̄ (W: c = 0.01),
     so tension and compression differ by the fraction c only.
 
+    ``plane_strain=True`` maps a 2D slice of a wide plate (cylindrical bending): the normal
+    stiffnesses use E' = E/(1−ν²), so the bonded strip has the plate's D = Ee³/(12(1−ν²))
+    per unit width; the shear modulus stays G = E/(2(1+ν)).
+
     Returns bond_kn, bond_ks [Pa/m] and kn, ks [N/m per unit thickness]."""
     _check_elastic(E, nu)
+    G = E / (2 * (1 + nu))
+    if plane_strain:
+        if plate:
+            raise ParameterError("k42_mapping: plate and plane_strain are alternatives; "
+                                 "choose one")
+        E = E / (1 - nu * nu)
     require("radius", radius, 0.0, None, lo_open=True)
     require("lam", lam, 0.0, 1.0, lo_open=True)
     if plate:
         E = E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
         bkn, bks, kn, ks = E / (2 * radius), 0.25 * E / radius, lam * E, 0.5 * lam * E
     else:
-        G = E / (2 * (1 + nu))
         bkn, bks, kn, ks = E / (2 * radius), G / (2 * radius), lam * E, lam * G
     if contact_fraction is None:
         return dict(bond_kn=bkn, bond_ks=bks, kn=kn, ks=ks)

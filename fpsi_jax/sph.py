@@ -195,14 +195,16 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False):
 
 
 def extrapolated_boundary_pressure(n_fluid, kern, sp, gravity, x, h, rho, p, idx_b,
-                                   acc_b=None):
+                                   acc_b=None, first=None):
     """Boundary pressure from the fluid (Adami, Hu & Adams 2012, Eq. 27):
     P_b = (Σ_f P_f W_bf + (g − a_b)·Σ_f ρ_f x_bf W_bf) / Σ_f W_bf, clamped at P ≥ 0 so a
     wall never pulls the fluid; ρ_b from the inverted EOS. Rows without fluid get P = 0.
     ``x, h, rho, p`` cover all particles; ``idx_b`` is the (n_b, K) list of boundary rows,
-    which follow the n_fluid fluid rows."""
+    which start at particle ``first`` (default: right after the n_fluid fluid rows);
+    ``acc_b`` the wall particles' acceleration (moving walls, e.g. structure discs)."""
     nb = idx_b.shape[0]
-    xb, hb = x[n_fluid:n_fluid + nb], h[n_fluid:n_fluid + nb]
+    first = n_fluid if first is None else first
+    xb, hb = x[first:first + nb], h[first:first + nb]
     nbr = gather(jnp.concatenate([x, h[:, None], rho[:, None], p[:, None]], axis=1), idx_b,
                  fill=FAR)
     dx = xb[:, None, :] - nbr[..., 0:2]

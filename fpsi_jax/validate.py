@@ -127,6 +127,7 @@ def dam_break(quick: bool = False, overrides: dict | None = None):
 
 
 from . import validate_solids  # noqa: E402,F401  (registers the DEM and bond cases)
+from . import validate_fsi  # noqa: E402,F401  (registers the fluid–structure cases)
 
 
 def run(names=None, quick=False, overrides=None) -> list[Record]:

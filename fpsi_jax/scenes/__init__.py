@@ -7,6 +7,7 @@ from ..params import ParameterError
 from .beams import bond_tension, cantilever, itasca_beam
 from .dam_break import dam_break
 from .dem_cases import collision, dry_dam_break, rolling
+from .fsi_cases import elastic_gate, gate_failure, hydrostatic_plate
 from .hydrostatic_tank import hydrostatic_tank
 
 SCENES = {
@@ -18,6 +19,9 @@ SCENES = {
     "itasca_beam": itasca_beam,
     "cantilever": cantilever,
     "bond_tension": bond_tension,
+    "hydrostatic_plate": hydrostatic_plate,
+    "elastic_gate": elastic_gate,
+    "gate_failure": gate_failure,
 }
 
 
