@@ -51,6 +51,31 @@ def _plot_run(scene, res, out_png):
     plt.close(fig)
 
 
+def _plot_gate_run(scene, res, png):
+    """Tip ux, uy against the experiment (and other codes) in ``png``, the final state in
+    ``<png>_snapshot.png``; prints the error figures."""
+    from . import validate_fsi
+    t, ux, uy = validate_fsi.tip_displacement(scene, res)
+    validate_fsi.plot_gate([(f"fpsi-jax ({scene.builder_kwargs['coupling']})", t, ux, uy)],
+                           png, f"{scene.name}: gate tip vs Antoci et al. (2007)")
+    snap = png[:-4] + "_snapshot.png"
+    _plot_run(scene, res, snap)
+    print(f"wrote {snap}")
+    m = validate_fsi.gate_metrics(t, ux, uy)
+    print(f"peak tip ux {m['peak_ux_m'] * 1e3:.1f} mm at {m['t_peak_s']:.3f} s; experiment "
+          f"{m['exp_peak_ux_m'] * 1e3:.1f} mm at {m['exp_t_peak_s']:.2f} s: "
+          f"{m['peak_ux_rel_error']:+.1%}, {m['t_peak_error_s']:+.3f} s")
+    print(f"RMS vs experiment over 0-{min(0.36, t[-1]):.2f} s ({m['frames']} frames): ux "
+          f"{m['rms_ux_m'] * 1e3:.2f} mm, uy {m['rms_uy_m'] * 1e3:.2f} mm "
+          f"({m['rms_ux_rel_peak']:.1%}, {m['rms_uy_rel_peak']:.1%} of the experiment's peaks)")
+    if res.state.bonds is not None:
+        import numpy as np
+        broken = int((~np.asarray(res.state.bonds.intact)).sum())
+        if broken:
+            tb = np.asarray(res.state.bonds.t_break)
+            print(f"{broken} bonds broken, the first at t = {tb[tb >= 0].min():.4f} s")
+
+
 def draw_solids(ax, scene, state, color="tab:orange"):
     """Discs as circles (clamped ones grey), intact bonds as lines, walls as thick lines."""
     import numpy as np
@@ -96,14 +121,20 @@ def cmd_run(args):
     if not t_end > 0:
         raise ParameterError(f"--t-end = {t_end} out of range; allowed (0, inf)")
     setup(scene, args.dt, **phys)                      # every check before compiling
+    gate = scene.name in ("elastic_gate", "gate_failure")
     observe = validate.front_observer if scene.name == "dam_break" else None
+    if gate:
+        from . import validate_fsi
+        observe = validate_fsi.tip_observer(scene)
     try:
         res = simulate(scene, t_end=t_end, output=args.out, every=args.every,
                        progress=not args.quiet, dt=args.dt, observe=observe, **phys)
     except SimulationError as e:
         print(f"error: {e}", file=sys.stderr)
         return 3
-    print(f"{scene.name}: {res.n_steps} steps of {float(res.params.dt):.4g} s, "
+    sub = (f" x {res.physics.dem_substeps} DEM sub-steps"
+           if res.physics.has_fluid and res.physics.has_solid else "")
+    print(f"{scene.name}: {res.n_steps} steps of {float(res.params.dt):.4g} s{sub}, "
           f"{scene.n_particles} particles, wall {res.wall_s:.1f} s "
           f"(compile+first chunk {res.compile_s:.1f} s), "
           f"{res.particle_steps_per_s / 1e6:.2f} M particle-steps/s, "
@@ -113,7 +144,10 @@ def cmd_run(args):
     if args.plot:
         png = os.path.splitext(args.out or f"results/{scene.name}.h5")[0] + ".png"
         os.makedirs(os.path.dirname(os.path.abspath(png)), exist_ok=True)
-        _plot_run(scene, res, png)
+        if gate:
+            _plot_gate_run(scene, res, png)
+        else:
+            _plot_run(scene, res, png)
         print(f"wrote {png}")
         if scene.name == "dam_break" and res.observations is not None:
             import numpy as np

@@ -9,6 +9,8 @@ Layout of a file::
     /bonds/{i (b,), j (b,), intact (T,b), fn (T,b), fs (T,b), m (T,b)}
     /bonds/breaks/{bond, time, mode}            every break so far (mode 1 tension, 2 shear)
     /walls/{a (w,2), b (w,2)}
+    /fsi/{idx (s,), force (T,s,2), p (T,s)}   structure discs in the SPH sums: disc index,
+                                               the fluid's force on each and their pressure
     attrs: scene, physics, params (JSON), fpsi_version, status
 
 Datasets are extendible along the time axis and the file is flushed after every frame, so
@@ -72,6 +74,11 @@ class Writer:
             for k, dt in (("bond", np.int32), ("time", np.float64), ("mode", np.int32)):
                 self.f.create_dataset(f"bonds/breaks/{k}", shape=(0,), maxshape=(None,),
                                       dtype=dt, chunks=(256,))
+        self.n_structure = phys.n_structure if phys.has_fsi else 0
+        if self.n_structure:
+            self.f.create_dataset("fsi/idx", data=scene.solid.structure_indices())
+            self._make("fsi/force", (self.n_structure, 2), np.float32)
+            self._make("fsi/p", (self.n_structure,), np.float32)
         if scene.walls is not None:
             self.f.create_dataset("walls/a", data=np.asarray(scene.walls.a, np.float32))
             self.f.create_dataset("walls/b", data=np.asarray(scene.walls.b, np.float32))
@@ -100,6 +107,8 @@ class Writer:
             data.update({f"solid/{k}": getattr(state.solid, k) for k, _ in SOLID_FIELDS})
         if self.n_bonds:
             data.update({f"bonds/{k}": getattr(state.bonds, k) for k in BOND_FORCES})
+        if self.n_structure:
+            data.update({"fsi/force": state.fsi.force, "fsi/p": state.fsi.p})
         data = {k: np.asarray(v) for k, v in data.items()}
         for k, v in data.items():
             if not np.all(np.isfinite(v)):
@@ -241,6 +250,7 @@ class Run:
     params: dict
     status: str
     message: str
+    fsi: dict | None = None
 
     @property
     def frames(self) -> int:
@@ -263,4 +273,5 @@ def read(path) -> Run:
                    walls={k: f[f"walls/{k}"][:] for k in f["walls"]} if "walls" in f else {},
                    scene=json.loads(a["scene"]), physics=json.loads(a["physics"]),
                    params=json.loads(a["params"]), status=str(a.get("status", "")),
-                   message=str(a.get("message", "")))
+                   message=str(a.get("message", "")),
+                   fsi={k: f[f"fsi/{k}"][:] for k in f["fsi"]} if "fsi" in f else {})
