@@ -3,6 +3,7 @@ multi-rate check (issue 4).
 
     python experiments/elastic_gate.py                 # all four couplings, seed resolution
     python experiments/elastic_gate.py --multirate     # sub-stepped vs single-rate run
+    python experiments/elastic_gate.py --set alpha=0.157   # K's local damping
 
 Writes experiments/results/elastic_gate.json (peak ux, its time, RMS of ux and uy over
 0–0.36 s against the experiment, run time, steps, sub-steps, particle counts, per method),
@@ -48,7 +49,8 @@ def run(kw, t_end=None, **phys):
 def methods(args):
     rows, curves = {}, []
     for m in args.methods:
-        scene, tu, info = run({"coupling": m, **(COARSE if args.coarse else {})})
+        scene, tu, info = run({"coupling": m, **(COARSE if args.coarse else {}),
+                               **ov.parse_pairs(args.set)})
         if tu is not None:
             info.update(gate_metrics(*tu))
             curves.append((f"fpsi-jax, {m}", *tu))
@@ -61,6 +63,8 @@ def methods(args):
     meta = {"resolution": "coarse" if args.coarse else "seed (dx 1.75 mm, d 1.25 mm)",
             "scene_defaults": {k: v for k, v in scene.builder_kwargs.items() if k != "tip"}}
     name = "elastic_gate_coarse" if args.coarse else "elastic_gate"
+    if args.set:
+        name += "_" + "_".join(x.replace("=", "") for x in args.set)
     with open(os.path.join(OUT, f"{name}.json"), "w") as fh:
         json.dump({"methods": rows, **meta}, fh, indent=1, default=float)
     plot_gate(curves, os.path.join(OUT, f"{name}_methods.png"),
@@ -68,7 +72,7 @@ def methods(args):
 
 
 def multirate(args):
-    kw = COARSE if args.coarse else {}
+    kw = {**(COARSE if args.coarse else {}), **ov.parse_pairs(args.set)}
     t_end = args.t_end
     out = {}
     for label, phys in (("multi_rate", {}), ("single_rate", {"dem_substeps": 1})):
@@ -94,6 +98,7 @@ if __name__ == "__main__":
     ap.add_argument("--multirate", action="store_true")
     ap.add_argument("--coarse", action="store_true")
     ap.add_argument("--t-end", type=float, default=0.4)
+    ap.add_argument("--set", action="append", default=[], help="scene keyword, e.g. alpha=0.157")
     args = ap.parse_args()
     os.makedirs(OUT, exist_ok=True)
     multirate(args) if args.multirate else methods(args)

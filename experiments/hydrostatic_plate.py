@@ -26,7 +26,7 @@ if __name__ == "__main__":
     ap.add_argument("--coarse", action="store_true")
     ap.add_argument("--shear-factors", type=float, nargs="*", default=[20.0, 1.0])
     ap.add_argument("--coupling", default="extrapolated")
-    ap.add_argument("--t-end", type=float, default=1.0)
+    ap.add_argument("--t-end", type=float, default=0.5)
     args = ap.parse_args()
     os.makedirs(OUT, exist_ok=True)
     base = dict(dx=0.0035, d=0.0025, dx_boundary=0.0025) if args.coarse else {}

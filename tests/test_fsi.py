@@ -230,13 +230,13 @@ def test_substeps_equal_small_single_steps_of_the_discs():
     p = params.as_arrays(jnp.float64)
     st = integrate.init_state(sc, phys, p)
     n = phys.dem_substeps
-    solid, bonds, *_ = integrate._solid_substeps(phys, st, p)
+    solid, bonds, *_ = jax.jit(integrate._solid_substeps, static_argnums=0)(phys, st, p)
     s, b, nb = st.solid, st.bonds, st.solid_nbrs
     f = integrate.fluid_force_on_discs(phys, st)
     assert float(jnp.abs(f).sum()) > 0
+    one = jax.jit(integrate._solid_step, static_argnums=0)
     for k in range(n):
-        s, b, nb, _ = integrate._solid_step(phys, p, s, b, nb, st.walls,
-                                            st.t + (k + 1) * p.dt / n, p.dt / n, f)
+        s, b, nb, _ = one(phys, p, s, b, nb, st.walls, st.t + (k + 1) * p.dt / n, p.dt / n, f)
     np.testing.assert_allclose(np.asarray(solid.x), np.asarray(s.x), rtol=0, atol=1e-15)
 
 
