@@ -67,7 +67,7 @@ if __name__ == "__main__":
         ok = run.bonds["intact"][k].astype(bool)
         ax.add_collection(LineCollection(np.stack([xs[i[ok]], xs[j[ok]]], 1), colors="k",
                                          linewidths=0.4))
-        ax.set_xlim(0.0, 0.3)
+        ax.set_xlim(0.0, scene.builder_kwargs["tank_length"])
         ax.set_ylim(-0.005, 0.16)
         ax.set_aspect("equal")
         ax.set_title(f"t = {T[k]:.3f} s, broken {int(counts[k, 1])}/{scene.bonds.n}",
