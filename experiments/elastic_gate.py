@@ -7,7 +7,7 @@ multi-rate check (issue 4).
 
 Writes experiments/results/elastic_gate.json (peak ux, its time, RMS of ux and uy over
 0–0.36 s against the experiment, run time, steps, sub-steps, particle counts, per method),
-elastic_gate_methods.png, and for --multirate elastic_gate_multirate.json.
+elastic_gate_methods.png, and for --multirate elastic_gate_multirate[_coarse].json.
 """
 from __future__ import annotations
 
@@ -88,7 +88,8 @@ def multirate(args):
     out["resolution"] = "coarse (dx 3.5 mm, d 2.5 mm)" if args.coarse else "seed"
     out["t_end_s"] = t_end
     print(json.dumps({k: out[k] for k in ("peak_ux_rel_difference", "speed_up")}))
-    with open(os.path.join(OUT, "elastic_gate_multirate.json"), "w") as fh:
+    name = "elastic_gate_multirate" + ("_coarse" if args.coarse else "")
+    with open(os.path.join(OUT, f"{name}.json"), "w") as fh:
         json.dump(out, fh, indent=1, default=float)
 
 
