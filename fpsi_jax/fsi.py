@@ -53,13 +53,10 @@ def structure_mask(idx, first, n_structure):
     return (idx >= first) & (idx < first + n_structure)
 
 
-def pressure_coefficient(method, p_i, rho_i, p_j, rho_j, is_structure):
-    """The bracket of the pressure term (K34) for every pair: P_i/ρ_i² + P_j/ρ_j², except the
-    fluid–structure pairs of the pressure-gradient method, P_F/(ρ_F ρ_S) (K40)."""
-    coef = (p_i / rho_i ** 2)[:, None] + p_j / rho_j ** 2
-    if method == "pressure_gradient":
-        coef = jnp.where(is_structure, (p_i / rho_i)[:, None] / rho_j, coef)
-    return coef
+def pressure_gradient_bracket(coef, p_i, rho_i, rho_j, is_structure):
+    """The pressure bracket ``coef`` (K34: P_i/ρ_i² + P_j/ρ_j²) with the fluid–structure pairs
+    of the pressure-gradient method replaced by P_F/(ρ_F ρ_S) (K40)."""
+    return jnp.where(is_structure, (p_i / rho_i)[:, None] / rho_j, coef)
 
 
 def approximate_pressure(kern, n_fluid, x, h, rho, p, mass, idx_s, sp):

@@ -182,6 +182,15 @@ def _solid_step(phys: Physics, params: Params, s: SolidState, bonds, nbrs_old, w
     return solid, bonds, nbrs, rebuilt
 
 
+def structure_particles(phys: Physics, state: State):
+    """(x_S, v_S, a_S, FsiState) of the structure discs in the SPH sums, or None."""
+    if not phys.has_fsi:
+        return None
+    k = state.fsi.idx
+    s = state.solid
+    return s.x[k], s.v[k], s.acc[k], state.fsi
+
+
 def fluid_force_on_discs(phys: Physics, state: State):
     """The fluid's force on every disc (n_solid, 2) from the last SPH evaluation, or None."""
     if not phys.has_fsi:
@@ -261,10 +270,7 @@ def _fluid_step(phys: Physics, state: State, params: Params):
     with jax.named_scope("integrate.kick_drift"):
         v_half = f.v + 0.5 * dt * f.acc
         x_new = f.x + dt * (v_half + f.xsph)
-    structure = None
-    if phys.has_fsi:
-        k = state.fsi.idx
-        structure = (state.solid.x[k], state.solid.v[k], state.solid.acc[k], state.fsi)
+    structure = structure_particles(phys, state)
     with jax.named_scope("neighbors.update"):
         all_x = _cat(x_new, None if state.boundary is None else state.boundary.x,
                      None if structure is None else structure[0])
@@ -377,12 +383,9 @@ def refresh_rates(phys: Physics, state: State, params: Params) -> State:
     and histories are left as they are."""
     if phys.has_fluid:
         f = state.fluid
-        structure = None
-        if phys.has_fsi:
-            k = state.fsi.idx
-            structure = (state.solid.x[k], state.solid.v[k], state.solid.acc[k], state.fsi)
         _, _, acc, xs, b, fs = fluid_update(phys, params, f.x, f.v, f.rho, f.h, f.mass,
-                                            state.boundary, state.nbrs, 0.0, structure)
+                                            state.boundary, state.nbrs, 0.0,
+                                            structure_particles(phys, state))
         state = state.replace(fluid=f.replace(acc=acc, xsph=xs), boundary=b, fsi=fs)
     if phys.has_solid:
         s = state.solid

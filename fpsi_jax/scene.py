@@ -178,17 +178,8 @@ class Scene:
             raise ParameterError("scene has DEM discs or walls but params.dem is None")
         if self.walls is not None and self.solid is None:
             raise ParameterError("scene has DEM walls but no solid discs")
-        method = self.options.get("fsi")
-        if method is not None:
-            from .fsi import METHODS
-            if method not in METHODS:
-                raise ParameterError(f"fsi must be one of {METHODS}, got {method!r}")
-            if self.fluid is None or self.solid is None:
-                raise ParameterError("option fsi needs both fluid and solid discs in the scene")
-            if self.solid.structure_indices().size == 0:
-                raise ParameterError("option fsi is set but no disc is marked as structure")
-            if np.any(self.solid.volumes() <= 0):
-                raise ParameterError("solid.sph_volume out of range; allowed (0, inf)")
+        if self.solid is not None and np.any(self.solid.volumes() <= 0):
+            raise ParameterError("solid.sph_volume out of range; allowed (0, inf)")
         if self.bonds is not None:
             self._validate_bonds()
         if self.walls is not None:
@@ -355,6 +346,8 @@ class Physics:
             if scene.fluid is None or scene.solid is None:
                 raise ParameterError("option fsi needs both fluid and solid discs in the scene")
             n_structure = int(scene.solid.structure_indices().size)
+            if n_structure == 0:
+                raise ParameterError("option fsi is set but no disc is marked as structure")
         section = opts.get("bond_section", "slab")
         if section not in BOND_SECTIONS:
             raise ParameterError(f"bond_section must be one of {BOND_SECTIONS}, got {section!r}")

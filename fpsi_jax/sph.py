@@ -17,7 +17,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from . import kernels
+from . import fsi, kernels
 
 FAR = 1.0e6  # position of the padding particle: farther than any cut-off
 
@@ -160,18 +160,16 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False):
     structure) at the new time level. With a fluid–structure coupling (``phys.fsi``) the
     fluid–structure pairs use its pressure bracket (see ``fsi``). Returns (a, δv_XSPH,
     pair accelerations (rows, K, 2) if ``with_pairs`` else None)."""
-    from . import fsi
     rows = pr.idx.shape[0]
     rho_i, p_i = rho[:rows], p[:rows]
     rp = gather(jnp.stack([rho, p], axis=1), pr.idx)   # second (small) gather: new ρ, P
     rho_j, p_j = rp[..., 0], rp[..., 1]
     with jax.named_scope("sph.pressure"):
-        if phys.fsi is not None:
+        coef = (p_i / rho_i ** 2)[:, None] + p_j / rho_j ** 2
+        if phys.fsi == "pressure_gradient":
             is_s = fsi.structure_mask(pr.idx, phys.n_fluid + phys.n_boundary, phys.n_structure)
-            with jax.named_scope("fsi." + phys.fsi):
-                coef = fsi.pressure_coefficient(phys.fsi, p_i, rho_i, p_j, rho_j, is_s)
-        else:
-            coef = (p_i / rho_i ** 2)[:, None] + p_j / rho_j ** 2
+            with jax.named_scope("fsi.pressure_gradient"):
+                coef = fsi.pressure_gradient_bracket(coef, p_i, rho_i, rho_j, is_s)
         if phys.anticlump:
             with jax.named_scope("sph.anticlump"):
                 r_ij = anticlump(sp.r_clump, p_i, rho_i, p_j, rho_j, pr.w,
