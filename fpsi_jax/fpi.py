@@ -1,18 +1,45 @@
 """Fluid–particle interaction (physics.md §Fluid–particle coupling; W2.2, W3.1.2–3.1.4, W4.2).
 
-Pure functions of arrays. Grain rows carry Dense lists of their *fluid* neighbours (padding
-masked by ``valid``); W and the volumes V_f = m_f/ρ_f are gathered by the caller.
+Grains are free DEM discs that do not take part in the SPH sums as particles; they act on the
+fluid through the voidage ε (the fluid equations use ερ, W42–W43) and through the reaction of
+the pressure and drag forces they feel (W47–W48). They sit at the end of the SPH neighbour family,
+so each grain row of the list holds its fluid neighbours; everything here works on those rows
+(``idx`` (n_g, K), padding and non-fluid neighbours masked by ``valid``).
 
-Status (issue 5, first part): the closure laws and the weights are here and unit-tested; the
-wiring into ``integrate.step`` (ερ in the fluid equations, the grain phase in the SPH
-family) is the rest of the issue.
+Choices the seeds leave open (all documented in the README's design section):
+
+* Voidage. The fluid equations use the area voidage ε = 1 − Σ V_p W of the 2D model: with
+  it the volumes add up (fluid ε V plus grains (1 − ε) V) and a fluid particle at rest
+  next to a grain is in equilibrium (see the buoyancy note below). But in 2D a disc packing's
+  area fraction reaches 0.91 (ε = 0.09), far outside the 3D packings that Ergun and Wen–Yu
+  were fitted to, and a 2D bed of touching discs would be impermeable. So the drag closure
+  (β, Re) sees the grain's voidage mapped to the equivalent 3D packing (Physics.voidage =
+  '3d', default), ε₃ = 1 − 2/√(π√3) (1 − ε₂)^(3/2), which sends the densest hexagonal disc
+  packing to the densest sphere packing (ε 0.26); '2d' uses the area voidage there too.
+  The fluid voidage is clipped at EPS_MIN (just below the hexagonal packing's 0.093).
+* Buoyancy. By default Archimedes' ρ_f V_p |g| (Physics.fpi_pressure = 'archimedes'):
+  W25 without its ε_p, the one static force consistent with the fluid equations (a fluid
+  particle of mass ερV at rest beside a grain is in balance only if the reaction handed to
+  it is its share of ρ_f V_p g; with W25's ε_p a grain of the fluid's density sinks at
+  1 − ε_p of its weight). 'gradient' uses −V_p ∇P of the SPH pressure
+  (:func:`pressure_force`), which adds the dynamic pressure of the flow. Either way the
+  reaction goes to the fluid with the drag, by kernel weights (W47–W48).
+* V_p is the disc's area πR² per unit thickness, the same as the disc's mass ρ_p πR². The
+  force per unit mass, and with it the terminal velocity, is then exactly that of a sphere
+  of diameter d under the same drag law.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import jax.numpy as jnp
+
+from . import kernels, sph
 
 ERGUN_LIMIT = 0.8        # W20: Ergun for ε ≤ 0.8, Wen–Yu above
 RE_NEWTON = 1000.0       # W22: C_d = 0.44 above
+EPS_MIN = 0.08           # floor of the fluid voidage (hexagonal disc packing: 0.093)
+_PACK_3D = 2.0 / (jnp.pi * 3.0 ** 0.5) ** 0.5   # 2/√(π√3)
 
 
 def _norm(v, eps=1e-30):
@@ -20,10 +47,20 @@ def _norm(v, eps=1e-30):
     return jnp.sqrt(jnp.sum(v * v, axis=-1) + eps)
 
 
-def fluid_voidage(w_fp, v_p, valid):
-    """ε_i = 1 − Σ_p V_p W(x_i − x_p, h) over the grain neighbours of each fluid row (discrete
-    W2), clipped to [0, 1]. ``w_fp`` (n_f, K) kernel values, ``v_p`` (n_f, K) grain volumes."""
-    return jnp.clip(1.0 - jnp.sum(jnp.where(valid, w_fp * v_p, 0.0), axis=1), 0.0, 1.0)
+def voidage_3d(eps2d):
+    """Area voidage of a disc packing → the equivalent 3D voidage,
+    ε₃ = 1 − 2/√(π√3) (1 − ε₂)^(3/2) (hexagonal discs → face-centred spheres)."""
+    return 1.0 - _PACK_3D * jnp.clip(1.0 - eps2d, 0.0, 1.0) ** 1.5
+
+
+def fluid_voidage(w, vol_p, idx, valid, n_fluid):
+    """ε_f = 1 − Σ_p V_p W(x_f − x_p, h_f) (discrete W2), gathered from the grain rows: each
+    grain adds V_p W to its fluid neighbours. ``w`` (n_g, K) kernel values, ``vol_p`` (n_g,).
+    The area voidage, clipped to [EPS_MIN, 1]."""
+    share = jnp.where(valid, w * vol_p[:, None], 0.0)
+    target = jnp.where(valid, idx, n_fluid)
+    solid = jnp.zeros(n_fluid + 1, w.dtype).at[target.reshape(-1)].add(share.reshape(-1))
+    return jnp.clip(1.0 - solid[:n_fluid], EPS_MIN, 1.0)
 
 
 def shepard(values, w, vol, valid):
@@ -67,11 +104,6 @@ def drag_force(eps, u_f, v_p, vol_p, rho_f, d, mu):
     return (beta / (1.0 - eps) * vol_p)[:, None] * rel
 
 
-def buoyancy(eps, vol_p, rho_f, gravity):
-    """F_b = −ε ρ_f V_p g (W25): upward, magnitude ε ρ_f V_p |g|."""
-    return -(eps * rho_f * vol_p)[:, None] * jnp.asarray(gravity)[None, :]
-
-
 def lubrication(x_ij, v_ij, d_mean, mu, gap_min, cutoff):
     """Lubrication between wet grains (W24): F_ij = −3πμ d̄²/(8 s) (v_ij·x_ij/|x_ij|²) x_ij,
     s = |x_ij| − d̄ the gap, regularised as s ← max(s, gap_min) (never divides by zero) and
@@ -101,3 +133,101 @@ def reaction_on_fluid(force_p, weights, idx, n_fluid):
     out = jnp.zeros((n_fluid + 1, 2), force_p.dtype).at[target.reshape(-1)].add(
         share.reshape(-1, 2))
     return out[:n_fluid]
+
+
+# --- the coupling, on the grain rows of the SPH list --------------------------------------
+class GrainRows(NamedTuple):
+    """Each grain's fluid neighbours: indices into the fluid (padding n_f), mask, W_pf,
+    V_f = m_f/(ε_f ρ_f) (the particle's share of the mixture volume), x_pf = x_p − x_f and
+    F_pf = (1/r) dW/dr (so ∇_p W_pf = x_pf F_pf)."""
+
+    idx: object
+    valid: object
+    w: object
+    vol: object
+    dx: object
+    f: object
+
+
+def grain_rows(kern, x_f, h_f, vol_f, x_p, idx_g, n_fluid) -> GrainRows:
+    """Kernel values W(|x_p − x_f|, h_f) (the fluid particle's h) of the grain rows ``idx_g``,
+    whose entries below n_fluid are fluid neighbours."""
+    valid = idx_g < n_fluid
+    j = jnp.where(valid, idx_g, n_fluid)
+    nbr = sph.gather(jnp.concatenate([x_f, h_f[:, None], vol_f[:, None]], axis=1), j)
+    dx = x_p[:, None, :] - nbr[..., 0:2]
+    r2 = jnp.sum(dx * dx, axis=-1)
+    w = jnp.where(valid, kern.w(kernels.safe_sqrt(r2), nbr[..., 2]), 0.0)
+    f = jnp.where(valid, kern.grad_factor(r2, nbr[..., 2]), 0.0)
+    return GrainRows(j, valid, w, jnp.where(valid, nbr[..., 3], 0.0), dx, f)
+
+
+def pressure_gradient(rows: GrainRows, p_f):
+    """∇P at each grain from its fluid neighbours by a kernel-weighted linear least-squares
+    fit P ≈ P_0 + ∇P·(x_f − x_p), weights V_f W_pf: exact for a linear pressure field even
+    where the kernel is cut by a wall or the free surface (a plain SPH gradient loses a third
+    of ρg there). Lengths are scaled by the weighted neighbour distance and a 1e-9 ridge
+    keeps a grain with too few neighbours finite."""
+    wv = jnp.where(rows.valid, rows.w * rows.vol, 0.0)
+    r = -rows.dx                                                     # x_f − x_p
+    scale = jnp.sqrt(jnp.sum(wv * jnp.sum(r * r, -1), 1) / jnp.maximum(jnp.sum(wv, 1), 1e-30)
+                     + 1e-30)
+    basis = jnp.concatenate([jnp.ones_like(r[..., :1]), r / scale[:, None, None]], -1)
+    m = jnp.einsum("pk,pki,pkj->pij", wv, basis, basis) + 1e-9 * jnp.eye(3)
+    rhs = jnp.einsum("pk,pk,pki->pi", wv, sph.gather(p_f, rows.idx, 0.0), basis)
+    coef = jnp.linalg.solve(m, rhs[..., None])[..., 0]
+    return coef[:, 1:] / scale[:, None]
+
+
+def pressure_force(rows: GrainRows, p_f, vol_p):
+    """−V_p ∇P at each grain (the 'gradient' buoyancy; :func:`pressure_gradient`)."""
+    return -vol_p[:, None] * pressure_gradient(rows, p_f)
+
+
+def grain_drag(rows: GrainRows, eps_f, v_f, v_p, vol_p, d_p, rho_f, mu, voidage_mode="3d"):
+    """Grain voidage ε_p (W18), fluid velocity ū_f (W21), wetness Σ V_f W and the drag on
+    each grain (W19–W23). ε_p is the Shepard average of the fluid's area voidage, mapped to
+    3D for the closure when ``voidage_mode`` is '3d'. A grain without fluid neighbours is
+    dry: no drag. Returns (ε_p as the closure sees it, ū_f, wet, drag)."""
+    eps_p, wet = shepard(sph.gather(eps_f, rows.idx), rows.w, rows.vol, rows.valid)
+    u_f, _ = shepard(sph.gather(v_f, rows.idx, 0.0), rows.w, rows.vol, rows.valid)
+    is_wet = wet > 0
+    if voidage_mode == "3d":
+        eps_p = voidage_3d(eps_p)
+    eps_p = jnp.where(is_wet, jnp.clip(eps_p, EPS_MIN, 1.0 - 1e-9), 1.0 - 1e-9)
+    drag = drag_force(eps_p, u_f, v_p, vol_p, rho_f, d_p, mu)
+    return eps_p, u_f, wet, jnp.where(is_wet[:, None], drag, 0.0)
+
+
+def reaction_acceleration(rows: GrainRows, force_p, m_f):
+    """The fluid's acceleration from handing the drag's −F_p out by kernel weights
+    (W47–W48)."""
+    w = reaction_weights(rows.w, rows.vol, rows.valid)
+    return reaction_on_fluid(force_p, w, rows.idx, m_f.shape[0]) / m_f[:, None]
+
+
+def lubrication_on_discs(x, v, radius, wet, idx, mu, gap_min, cutoff):
+    """Σ_j of W24 over the DEM contact list for every disc: pairs of wet grains only (``wet``
+    (n,) bool: a grain with fluid neighbours), gaps regularised and cut off relative to
+    d̄ = R_i + R_j (``gap_min``, ``cutoff`` are fractions of d̄). Antisymmetric pair terms:
+    Σ over discs is zero (Newton's third law)."""
+    n = x.shape[0]
+    valid = idx < n
+    tab = jnp.concatenate([x, v, radius[:, None], wet[:, None].astype(x.dtype)], axis=1)
+    nbr = sph.gather(tab, idx, 0.0)
+    d_mean = radius[:, None] + nbr[..., 4]
+    f = lubrication(x[:, None, :] - nbr[..., 0:2], v[:, None, :] - nbr[..., 2:4], d_mean, mu,
+                    gap_min * d_mean, cutoff * d_mean)
+    pair = valid & wet[:, None] & (nbr[..., 5] > 0)
+    return jnp.sum(jnp.where(pair[..., None], f, 0.0), axis=1)
+
+
+def voidage_at(kern, x_f, h_f, x_p, vol_p):
+    """The fluid voidage at ``x_f`` for grains at ``x_p`` by brute force over all pairs, with
+    the same kernel sums as the step (for scene builders: fluid particles among grains get
+    mass ε ρ0 Δx², so that their volume m/(ερ) is their lattice cell)."""
+    x_f, h_f, x_p = jnp.asarray(x_f), jnp.asarray(h_f), jnp.asarray(x_p)
+    n_f = x_f.shape[0]
+    idx = jnp.broadcast_to(jnp.arange(n_f), (x_p.shape[0], n_f))
+    rows = grain_rows(kern, x_f, h_f, jnp.ones(n_f, x_f.dtype), x_p, idx, n_f)
+    return fluid_voidage(rows.w, jnp.asarray(vol_p), rows.idx, rows.valid, n_f)

@@ -38,11 +38,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import bonds as bonds_mod
-from . import dem, fsi, kernels, neighbors, sph
+from . import dem, fpi, fsi, kernels, neighbors, sph
 from .params import ParameterError, Params
 from .scene import Physics, Scene
-from .state import (BondState, BoundaryState, FluidState, FsiState, SolidState, State, Status,
-                    WallState)
+from .state import (BondState, BoundaryState, FluidState, FpiState, FsiState, SolidState, State,
+                    Status, WallState)
 
 
 def dtype(phys: Physics):
@@ -57,76 +57,125 @@ def _cat(*parts):
 
 
 def sph_positions(state: State):
-    """Positions of the SPH family in list order: fluid, boundary, structure."""
-    b, f = state.boundary, state.fsi
+    """Positions of the SPH family in list order: fluid, boundary, structure, grains."""
+    b, f, g = state.boundary, state.fsi, state.fpi
     return _cat(state.fluid.x, None if b is None else b.x,
-                None if f is None else state.solid.x[f.idx])
+                None if f is None else state.solid.x[f.idx],
+                None if g is None else state.solid.x[g.idx])
 
 
 # --- forces ------------------------------------------------------------------------------
 def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nbrs, dt,
-                 structure=None):
+                 structure=None, grains=None):
     """One SPH evaluation at positions ``x`` and velocities ``v`` (v½ in a step):
-    returns (ρ', h', a', δv_XSPH, boundary, fsi) with ρ' = ρ + dt Dρ/Dt (dt = 0: no drift).
+    returns (ρ', h', a', δv_XSPH, boundary, fsi, fpi) with ρ' = ρ + dt Dρ/Dt (dt = 0: no
+    drift).
 
     ``structure`` = (x_S, v_S, a_S, FsiState) puts the structure discs into the sums (fsi.py);
     the returned FsiState then carries the fluid's force on them (and, for the pressure
-    approximation, their new P_S and ρ_S)."""
+    approximation, their new P_S and ρ_S).
+
+    ``grains`` = (x_p, v_p, FpiState) couples the grains (fpi.py). The conserved density is
+    then ερ (W42): continuity advances ε_old ρ, the voidage ε at the new positions turns it
+    back into the intrinsic ρ that the EOS, the viscosity and the walls see, the pressure
+    bracket carries ε (``sph.voidage_bracket``), and the grains' drag and buoyancy go back
+    to the fluid by kernel weights (W47–W48). The returned FpiState carries the new ε and
+    the force on each grain. Without grains none of this is traced."""
     sp, kern, nf = params.sph, kernels.get(phys.kernel), phys.n_fluid
     g = jnp.asarray(params.gravity)
     b = boundary
     nb = 0 if b is None else b.x.shape[0]
     xs_, vs_, as_, fs = structure if structure is not None else (None, None, None, None)
+    xp_, vp_, fp = grains if grains is not None else (None, None, None)
+    n_sph = nf + nb + (0 if fs is None else fs.idx.shape[0])
+    idx = nbrs.idx
+    if fp is not None:
+        idx, idx_g = jnp.minimum(idx[:n_sph], n_sph), idx[n_sph:]  # grains leave the sums
+        rho_c = fp.eps * rho
+    else:
+        rho_c = rho
     opt = lambda blk, k: None if blk is None else getattr(blk, k)
     all_x = _cat(x, opt(b, "x"), xs_)
     all_v = _cat(v, None if b is None else jnp.zeros_like(b.x), vs_)
     all_h = _cat(h, opt(b, "h"), opt(fs, "h"))
     all_m = _cat(mass, opt(b, "mass"), opt(fs, "mass"))
     pr = sph.pairs(kern, nf, all_x, all_v, all_h, all_m,
-                   _cat(rho, opt(b, "rho"), opt(fs, "rho")), nbrs.idx[:nf])
-    drho = sph.density_rate(phys, sp, rho, pr)
-    rho_new = rho + dt * drho
+                   _cat(rho_c, opt(b, "rho"), opt(fs, "rho")), idx[:nf])
+    if fp is None:
+        drho = sph.density_rate(phys, sp, rho_c, pr)
+    else:
+        drho = sph.density_rate(phys, sp, rho_c, pr, fp.eps,
+                                _cat(rho, opt(b, "rho"), opt(fs, "rho")))
+    rho_c_new = rho_c + dt * drho
     if phys.variable_h:
         with jax.named_scope("sph.variable_h"):
-            h_new = h + dt * sph.smoothing_length_rate(h, rho, drho)
+            h_new = h + dt * sph.smoothing_length_rate(h, rho_c, drho)
     else:
         h_new = h
+    if fp is not None:
+        with jax.named_scope("fpi.voidage"):
+            rows = fpi.grain_rows(kern, x, h, mass / rho_c_new, xp_, idx_g, nf)
+            eps = fpi.fluid_voidage(rows.w, fp.vol, rows.idx, rows.valid, nf)
+        rho_new = rho_c_new / eps
+    else:
+        rho_new = rho_c_new
     with jax.named_scope("sph.eos"):
         p_new = sph.eos_pressure(rho_new, sp.rho0, sp.c0, sp.gamma)
     if b is not None and phys.boundary_pressure == "extrapolated":
         with jax.named_scope("boundary.extrapolated"):
             pb, rhob = sph.extrapolated_boundary_pressure(
                 nf, kern, sp, g, all_x, all_h, _cat(rho_new, b.rho, opt(fs, "rho")),
-                _cat(p_new, b.p, opt(fs, "p")), nbrs.idx[nf:nf + nb])
+                _cat(p_new, b.p, opt(fs, "p")), idx[nf:nf + nb])
         b = b.replace(p=pb, rho=rhob)
     if fs is not None and phys.fsi == "extrapolated":
         with jax.named_scope("fsi.extrapolated"):
             ps, rhos = sph.extrapolated_boundary_pressure(
                 nf, kern, sp, g, all_x, all_h, _cat(rho_new, opt(b, "rho"), fs.rho),
-                _cat(p_new, opt(b, "p"), fs.p), nbrs.idx[nf + nb:], acc_b=as_,
+                _cat(p_new, opt(b, "p"), fs.p), idx[nf + nb:n_sph], acc_b=as_,
                 first=nf + nb)
         fs = fs.replace(p=ps, rho=rhos)
     if fs is not None and phys.fsi == "pressure_approximation":
         with jax.named_scope("fsi.pressure_approximation"):
             ps, rhos = fsi.approximate_pressure(
                 kern, nf, all_x, all_h, _cat(rho_new, opt(b, "rho"), fs.rho),
-                _cat(p_new, opt(b, "p"), fs.p), all_m, nbrs.idx[nf + nb:], sp)
+                _cat(p_new, opt(b, "p"), fs.p), all_m, idx[nf + nb:n_sph], sp)
         fs = fs.replace(p=ps, rho=rhos)
+    rho_all = _cat(rho_new, opt(b, "rho"), opt(fs, "rho"))
     acc, xs, pair = sph.momentum_rate(
-        phys, kern, sp, g, _cat(rho_new, opt(b, "rho"), opt(fs, "rho")),
-        _cat(p_new, opt(b, "p"), opt(fs, "p")), pr, with_pairs=fs is not None)
+        phys, kern, sp, g, rho_all, _cat(p_new, opt(b, "p"), opt(fs, "p")), pr,
+        with_pairs=fs is not None,
+        eps=None if fp is None else _cat(eps, None if b is None else jnp.ones_like(b.rho),
+                                         None if fs is None else jnp.ones_like(fs.rho)))
     if fs is not None:
         with jax.named_scope("fsi.reaction"):
             fs = fs.replace(force=fsi.reaction(pair, mass, pr.idx, nf + nb, phys.n_structure))
-    return rho_new, h_new, acc, xs, b, fs
+    if fp is not None:
+        with jax.named_scope("fpi.drag"):
+            eps_p, u_f, wet, drag = fpi.grain_drag(rows, eps, v, vp_, fp.vol, fp.d, sp.rho0,
+                                                   sp.mu, phys.voidage)
+        with jax.named_scope("fpi.buoyancy"):
+            if phys.fpi_pressure == "archimedes":
+                lift = -(sp.rho0 * fp.vol)[:, None] * g[None, :]
+            else:
+                lift = fpi.pressure_force(rows, p_new, fp.vol)
+            force = drag + jnp.where((wet > 0)[:, None], lift, 0.0)
+        with jax.named_scope("fpi.reaction"):
+            acc = acc + fpi.reaction_acceleration(rows, force, mass)
+        fp = fp.replace(eps=eps, eps_p=eps_p, u_f=u_f, wet=wet, force=force)
+    return rho_new, h_new, acc, xs, b, fs, fp
 
 
 # --- DEM forces ---------------------------------------------------------------------------
 def solid_update(phys: Physics, params: Params, solid: SolidState, x, v, omega, theta, shear,
-                 idx, walls: WallState | None, bonds: BondState | None, t, dt, f_fluid=None):
-    """All forces on the discs at (x, θ, v, ω): returns (a, α, shear history, wall shear
-    history, bonds). ``dt`` is the shear-spring increment (0: no increment); ``f_fluid``
-    (n, 2) the fluid's force on each disc (held over the DEM sub-steps), or None."""
+                 idx, walls: WallState | None, bonds: BondState | None, t, dt, f_fluid=None,
+                 wet=None):
+    """The DEM forces on the discs at (x, θ, v, ω): returns (a, α, shear history, wall shear
+    history, bonds). ``dt`` is the shear-spring increment (0: no increment); ``wet`` (n,)
+    bool marks the wet grains that lubricate each other (W24), or None.
+
+    The fluid's force is not in ``a``: the step applies it in its own half kicks (see
+    ``step``). ``f_fluid`` (n, 2), its value of the last SPH evaluation, only enters the
+    unbalanced force that local damping (K25) acts on."""
     dp = params.dem
     with jax.named_scope("dem.contacts"):
         force, torque, shear, _ = dem.disc_contacts(dp, x, v, omega, solid.radius, solid.mass,
@@ -149,10 +198,14 @@ def solid_update(phys: Physics, params: Params, solid: SolidState, x, v, omega, 
         force, torque = force + fb, torque + tb
     g = jnp.asarray(params.gravity, x.dtype)
     force = force + solid.mass[:, None] * g + solid.f_ext * dem.load_factor(dp.load_ramp, t)
-    if f_fluid is not None:
-        force = force + f_fluid
+    if wet is not None:
+        with jax.named_scope("fpi.lubrication"):
+            fp = params.fpi
+            force = force + fpi.lubrication_on_discs(x, v, solid.radius, wet, idx, params.sph.mu,
+                                                     fp.lub_gap_min, fp.lub_cutoff)
     with jax.named_scope("dem.local_damping"):
-        force = dem.local_damping(dp.alpha, force, v)
+        unbalanced = force if f_fluid is None else force + f_fluid
+        force = force + dem.local_damping(dp.alpha, unbalanced, v) - unbalanced
         torque = dem.local_damping(dp.alpha, torque, omega)
     free = ~solid.fixed
     acc = jnp.where(free[:, None], force / solid.mass[:, None], 0.0)
@@ -161,7 +214,7 @@ def solid_update(phys: Physics, params: Params, solid: SolidState, x, v, omega, 
 
 
 def _solid_step(phys: Physics, params: Params, s: SolidState, bonds, nbrs_old, walls, t, dt,
-                f_fluid=None):
+                f_fluid=None, wet=None):
     """One DEM kick–drift–kick of length ``dt`` ending at time ``t``."""
     with jax.named_scope("integrate.solid_kick_drift"):
         v_half = s.v + 0.5 * dt * s.acc
@@ -174,7 +227,7 @@ def _solid_step(phys: Physics, params: Params, s: SolidState, bonds, nbrs_old, w
                              nbrs_old.idx, s.shear, nbrs.idx)
     acc, alpha, shear, wshear, bonds = solid_update(
         phys, params, s, x_new, v_half, w_half, th_new, shear, nbrs.idx, walls, bonds, t, dt,
-        f_fluid)
+        f_fluid, wet)
     with jax.named_scope("integrate.solid_kick"):
         solid = s.replace(x=x_new, theta=th_new, v=v_half + 0.5 * dt * acc,
                           omega=w_half + 0.5 * dt * alpha, acc=acc, alpha=alpha, shear=shear,
@@ -183,34 +236,64 @@ def _solid_step(phys: Physics, params: Params, s: SolidState, bonds, nbrs_old, w
 
 
 def structure_particles(phys: Physics, state: State):
-    """(x_S, v_S, a_S, FsiState) of the structure discs in the SPH sums, or None."""
+    """(x_S, v_S, a_S, FsiState) of the structure discs in the SPH sums, or None; a_S is the
+    whole acceleration, DEM forces plus the fluid's (last evaluation)."""
     if not phys.has_fsi:
         return None
     k = state.fsi.idx
     s = state.solid
-    return s.x[k], s.v[k], s.acc[k], state.fsi
+    a = s.acc[k] + jnp.where(s.fixed[k][:, None], 0.0, state.fsi.force / s.mass[k][:, None])
+    return s.x[k], s.v[k], a, state.fsi
+
+
+def grain_particles(phys: Physics, state: State):
+    """(x_p, v_p, FpiState) of the grains coupled to the fluid, or None."""
+    if not phys.has_fpi:
+        return None
+    k = state.fpi.idx
+    return state.solid.x[k], state.solid.v[k], state.fpi
 
 
 def fluid_force_on_discs(phys: Physics, state: State):
-    """The fluid's force on every disc (n_solid, 2) from the last SPH evaluation, or None."""
-    if not phys.has_fsi:
+    """The fluid's force on every disc (n_solid, 2) from the last SPH evaluation (pressure
+    and viscosity on structure discs, pressure and drag on grains), or None."""
+    if not (phys.has_fsi or phys.has_fpi):
         return None
-    return jnp.zeros_like(state.solid.x).at[state.fsi.idx].add(state.fsi.force)
+    f = jnp.zeros_like(state.solid.x)
+    if phys.has_fsi:
+        f = f.at[state.fsi.idx].add(state.fsi.force)
+    if phys.has_fpi:
+        f = f.at[state.fpi.idx].add(state.fpi.force)
+    return f
+
+
+def wet_grains(phys: Physics, state: State):
+    """(n_solid,) bool: grains with fluid neighbours, which lubricate each other (W24); None
+    when the scene has no lubrication."""
+    if not (phys.has_fpi and phys.lubrication):
+        return None
+    return jnp.zeros(state.solid.x.shape[0], bool).at[state.fpi.idx].set(state.fpi.wet > 0)
+
+
+def fluid_kick(solid: SolidState, f_fluid, dt):
+    """Half kick of the free discs by the fluid's force: v ← v + ½Δt F/m."""
+    dv = jnp.where(solid.fixed[:, None], 0.0, 0.5 * dt * f_fluid / solid.mass[:, None])
+    return solid.replace(v=solid.v + dv)
 
 
 def _solid_substeps(phys: Physics, state: State, params: Params):
-    """``phys.dem_substeps`` DEM steps of Δt/n covering one SPH step (multi-rate stepping),
-    the fluid's force on the structure held at its value of the last SPH evaluation.
-    Returns (solid, bonds, list, rebuilds, overflow)."""
+    """``phys.dem_substeps`` DEM steps of Δt/n covering one SPH step (multi-rate stepping)
+    under the DEM forces. Returns (solid, bonds, list, rebuilds, overflow)."""
     n = phys.dem_substeps
     dts = params.dt / n
     f_fluid = fluid_force_on_discs(phys, state)
+    wet = wet_grains(phys, state)
 
     def one(k, carry):
         solid, bonds, nbrs, rebuilds, overflow = carry
         t = state.t + (k + 1) * dts
         solid, bonds, nbrs, rb = _solid_step(phys, params, solid, bonds, nbrs, state.walls,
-                                             t, dts, f_fluid)
+                                             t, dts, f_fluid, wet)
         return (solid, bonds, nbrs, rebuilds + rb.astype(jnp.int32),
                 overflow | nbrs.did_buffer_overflow.astype(bool))
 
@@ -271,15 +354,17 @@ def _fluid_step(phys: Physics, state: State, params: Params):
         v_half = f.v + 0.5 * dt * f.acc
         x_new = f.x + dt * (v_half + f.xsph)
     structure = structure_particles(phys, state)
+    grains = grain_particles(phys, state)
     with jax.named_scope("neighbors.update"):
         all_x = _cat(x_new, None if state.boundary is None else state.boundary.x,
-                     None if structure is None else structure[0])
+                     None if structure is None else structure[0],
+                     None if grains is None else grains[0])
         nbrs, rebuilt = neighbors.update(phys.neighbors, state.nbrs, all_x)
-    rho, h, acc, xs, b, fs = fluid_update(phys, params, x_new, v_half, f.rho, f.h, f.mass,
-                                          state.boundary, nbrs, dt, structure)
+    rho, h, acc, xs, b, fs, fp = fluid_update(phys, params, x_new, v_half, f.rho, f.h, f.mass,
+                                              state.boundary, nbrs, dt, structure, grains)
     with jax.named_scope("integrate.kick"):
         fluid = f.replace(x=x_new, v=v_half + 0.5 * dt * acc, rho=rho, h=h, acc=acc, xsph=xs)
-    return fluid, b, nbrs, rebuilt, fs
+    return fluid, b, nbrs, rebuilt, fs, fp
 
 
 def step(phys: Physics, state: State, params: Params) -> State:
@@ -287,26 +372,38 @@ def step(phys: Physics, state: State, params: Params) -> State:
     Only the phases the scene has are traced: a DEM-only scene compiles no SPH and a
     fluid-only scene no DEM.
 
-    With both phases the discs go first, in ``phys.dem_substeps`` sub-steps under the fluid
-    force of the last SPH evaluation; the fluid then steps against the structure at the end
-    of the step and returns the new force (a staggered, force-holding multi-rate scheme)."""
+    With fluid and discs coupled the step is impulse multiple time stepping (r-RESPA;
+    Tuckerman, Berne & Martyna 1992): half a kick of the discs by the fluid's force of the
+    last evaluation, ``phys.dem_substeps`` DEM sub-steps under the DEM forces, the SPH step
+    against the discs where they now are, which returns the fluid's new force, and the
+    second half kick by it. Every force thus acts at the positions it was computed at. (A
+    fluid force held over the whole DEM step, as the step did in issue 4, lags half a step
+    behind: a neutrally buoyant grain, whose pressure force stiffens with its position,
+    oscillated at ωΔt ≈ 0.3 with growing amplitude.)"""
     n = state.step + 1
     t = n * params.dt
     st = state.status
     new = state.replace(t=t, step=n)
+    f_old = fluid_force_on_discs(phys, state) if phys.has_fluid else None
     if phys.has_solid:
+        if f_old is not None:
+            state = state.replace(solid=fluid_kick(state.solid, f_old, params.dt))
         solid, bonds, snbrs, rebuilt, overflow = _solid_substeps(phys, state, params)
         st = st.replace(overflow=st.overflow | overflow, rebuilds=st.rebuilds + rebuilt)
-        st = _check_solid(phys, solid, n, st)
         new = new.replace(solid=solid, bonds=bonds, solid_nbrs=snbrs)
     if phys.has_fluid:
-        fluid, b, nbrs, rebuilt, fs = _fluid_step(phys, new, params)
+        fluid, b, nbrs, rebuilt, fs, fp = _fluid_step(phys, new, params)
         st = st.replace(overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool),
                         h_exceeded=st.h_exceeded
                         | (jnp.max(fluid.h) * 2.0 > phys.neighbors.r_cut),
                         rebuilds=st.rebuilds + rebuilt.astype(jnp.int32))
         st = _check(phys, params, fluid, n, st)
-        new = new.replace(fluid=fluid, boundary=b, nbrs=nbrs, fsi=fs)
+        new = new.replace(fluid=fluid, boundary=b, nbrs=nbrs, fsi=fs, fpi=fp)
+        if f_old is not None:
+            new = new.replace(solid=fluid_kick(new.solid, fluid_force_on_discs(phys, new),
+                                               params.dt))
+    if phys.has_solid:
+        st = _check_solid(phys, new.solid, n, st)
     return new.replace(status=st)
 
 
@@ -331,7 +428,7 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
     dt_ = dtype(phys)
     a = lambda v: jnp.asarray(v, dtype=dt_)
     z = jnp.zeros_like
-    fluid = boundary = nbrs = solid = bonds = walls = snbrs = fsi_state = None
+    fluid = boundary = nbrs = solid = bonds = walls = snbrs = fsi_state = fpi_state = None
     if scene.fluid is not None:
         fl = scene.fluid
         b = scene.boundary
@@ -348,6 +445,14 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
                 idx=jnp.asarray(k, jnp.int32), mass=a(rho0 * scene.solid.volumes()[k]),
                 h=a(np.full(ns, float(np.max(fl.h)))), rho=a(np.full(ns, rho0)),
                 p=a(np.zeros(ns)), force=a(np.zeros((ns, 2))))
+        if phys.has_fpi:
+            k = scene.solid.grain_indices()
+            r = np.asarray(scene.solid.radius, float)[k]
+            ng = k.size
+            fpi_state = FpiState(
+                idx=jnp.asarray(k, jnp.int32), vol=a(np.pi * r * r), d=a(2.0 * r),
+                eps=a(np.ones(fl.n)), eps_p=a(np.ones(ng)), u_f=a(np.zeros((ng, 2))),
+                wet=a(np.zeros(ng)), force=a(np.zeros((ng, 2))))
     if scene.solid is not None:
         so = scene.solid
         x = a(so.x)
@@ -355,7 +460,7 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
         snbrs = neighbors.allocate(phys.dem_neighbors, x)
         n_w = scene.walls.n if scene.walls is not None else 0
         solid = SolidState(
-            x=x, v=jnp.where(fixed[:, None], 0.0, a(so.v)), omega=jnp.where(fixed, 0.0, a(so.omega)),
+            x=x, v=a(so.v), omega=jnp.where(fixed, 0.0, a(so.omega)),
             theta=a(np.zeros(so.n)), acc=z(x), alpha=a(np.zeros(so.n)), radius=a(so.radius),
             mass=a(so.mass), inertia=a(so.inertia), fixed=fixed, f_ext=a(so.f_ext),
             shear=jnp.zeros(snbrs.idx.shape, dt_), wall_shear=jnp.zeros((so.n, n_w), dt_))
@@ -371,10 +476,22 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
                               t_break=jnp.full(nb, -1.0, dt_), mode=jnp.zeros(nb, jnp.int32))
     state = State(t=a(0.0), step=jnp.zeros((), jnp.int32), fluid=fluid, boundary=boundary,
                   nbrs=None, status=Status.ok(), solid=solid, bonds=bonds, solid_nbrs=snbrs,
-                  walls=walls, fsi=fsi_state)
+                  walls=walls, fsi=fsi_state, fpi=fpi_state)
     if fluid is not None:
         state = state.replace(nbrs=neighbors.allocate(phys.neighbors, sph_positions(state)))
+    if phys.has_fpi:
+        state = state.replace(fpi=state.fpi.replace(eps=initial_voidage(phys, state)))
     return refresh_rates(phys, state, params)
+
+
+def initial_voidage(phys: Physics, state: State):
+    """The fluid voidage at the state's positions (what the first step's ε_old must be). The
+    scene's fluid densities are intrinsic ρ; builders give the particles mass ε ρ0 Δx²."""
+    f, fp = state.fluid, state.fpi
+    n_sph = state.nbrs.idx.shape[0] - fp.idx.shape[0]
+    rows = fpi.grain_rows(kernels.get(phys.kernel), f.x, f.h, f.mass / f.rho,
+                          state.solid.x[fp.idx], state.nbrs.idx[n_sph:], phys.n_fluid)
+    return fpi.fluid_voidage(rows.w, fp.vol, rows.idx, rows.valid, phys.n_fluid)
 
 
 def refresh_rates(phys: Physics, state: State, params: Params) -> State:
@@ -383,30 +500,59 @@ def refresh_rates(phys: Physics, state: State, params: Params) -> State:
     and histories are left as they are."""
     if phys.has_fluid:
         f = state.fluid
-        _, _, acc, xs, b, fs = fluid_update(phys, params, f.x, f.v, f.rho, f.h, f.mass,
-                                            state.boundary, state.nbrs, 0.0,
-                                            structure_particles(phys, state))
-        state = state.replace(fluid=f.replace(acc=acc, xsph=xs), boundary=b, fsi=fs)
+        _, _, acc, xs, b, fs, fp = fluid_update(phys, params, f.x, f.v, f.rho, f.h, f.mass,
+                                                state.boundary, state.nbrs, 0.0,
+                                                structure_particles(phys, state),
+                                                grain_particles(phys, state))
+        state = state.replace(fluid=f.replace(acc=acc, xsph=xs), boundary=b, fsi=fs, fpi=fp)
     if phys.has_solid:
         s = state.solid
         acc, alpha, _, _, _ = solid_update(phys, params, s, s.x, s.v, s.omega, s.theta, s.shear,
                                            state.solid_nbrs.idx, state.walls, state.bonds,
-                                           state.t, 0.0, fluid_force_on_discs(phys, state))
+                                           state.t, 0.0, fluid_force_on_discs(phys, state),
+                                           wet_grains(phys, state))
         state = state.replace(solid=s.replace(acc=acc, alpha=alpha))
     return state
 
 
 # --- time step ---------------------------------------------------------------------------
+def _grains(scene: Scene):
+    """Indices of the grains coupled to the fluid (empty without option fpi)."""
+    if not (scene.options.get("fpi") and scene.fluid is not None and scene.solid is not None):
+        return np.zeros(0, int)
+    return scene.solid.grain_indices()
+
+
 def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
     """SPH bound (physics.md §Time integration): Δt ≤ min(0.25 h/(c0 + |v|max),
     0.125 h²/ν, 0.25 √(h/|a|max)), h the smallest smoothing length, |v|max the scene's
-    velocity scale and |a|max = max(|g|, a_max)."""
+    velocity scale and |a|max = max(|g|, a_max).
+
+    With grains in the fluid (fpi) the sound speed in ερ is c0/√ε, so c0/√ε_lo replaces c0,
+    ε_lo = max(EPS_MIN, 1 − n_grain V_p,max W(0)) the least voidage the grains can make; and
+    the drag, held over a step, must not relax the slip faster than the step: Δt ≤ 0.5 τ,
+    τ = ρ_p/(β/(1−ε)) with Ergun's β at the densest sphere packing (ε 0.26) and slip
+    |v|max."""
     sp = params.sph
     h = float(np.min(scene.fluid.h))
     nu = float(sp.mu) / float(sp.rho0)
     g = float(np.linalg.norm(np.asarray(params.gravity, float)))
     acc = max(g, a_max or 0.0, 1e-12)
-    bounds = [0.25 * h / (float(sp.c0) + scene.v_max), 0.25 * np.sqrt(h / acc)]
+    c = float(sp.c0)
+    grains = _grains(scene)
+    bounds = []
+    if grains.size:
+        r = np.asarray(scene.solid.radius, float)[grains]
+        w0 = float(kernels.get(scene.options.get("kernel", "wendland")).w(0.0, h))
+        c = c / math.sqrt(max(fpi.EPS_MIN, 1.0 - grains.size * np.pi * r.max() ** 2 * w0))
+        e = float(fpi.voidage_3d(fpi.EPS_MIN))
+        d = 2.0 * r
+        rho_p = (np.asarray(scene.solid.mass, float)[grains]
+                 / (np.pi * np.asarray(scene.solid.radius, float)[grains] ** 2))
+        rate = (150.0 * (1 - e) * float(sp.mu) / (e * d * d)
+                + 1.75 * float(sp.rho0) * scene.v_max / d) / rho_p
+        bounds.append(0.5 / float(np.max(rate)))
+    bounds += [0.25 * h / (c + scene.v_max), 0.25 * np.sqrt(h / acc)]
     if nu > 0:
         bounds.append(0.125 * h * h / nu)
     return float(min(bounds))

@@ -140,6 +140,23 @@ class BondParams:
 
 
 @pytree_dataclass
+class FpiParams:
+    """Fluid–particle coupling (physics.md §Fluid–particle coupling; W19–W25, W47–W48).
+    The fluid density and viscosity are the SPH ones (ρ_f = sph.rho0, μ = sph.mu).
+
+    lub_gap_min   lubrication (W24) gap regularisation: s ← max(s, lub_gap_min · d̄)
+    lub_cutoff    lubrication acts for gaps s ≤ lub_cutoff · d̄ (zero beyond)
+    """
+
+    lub_gap_min: Any = 0.02
+    lub_cutoff: Any = 0.1
+
+    def validate(self):
+        require("fpi.lub_gap_min", self.lub_gap_min, 0.0, 1.0, lo_open=True)
+        require("fpi.lub_cutoff", self.lub_cutoff, 0.0, 1.0)
+
+
+@pytree_dataclass
 class Params:
     """All differentiable parameters of a scene.
 
@@ -152,13 +169,14 @@ class Params:
     sph: SphParams | None = None
     dem: DemParams | None = None
     bond: BondParams | None = None
+    fpi: FpiParams | None = None
 
     def validate(self):
         require("dt", self.dt, 0.0, None, lo_open=True)
         g = np.asarray(self.gravity, dtype=float)
         if g.shape != (2,) or not np.all(np.isfinite(g)):
             raise ParameterError(f"gravity must be a finite 2-vector, got {self.gravity!r}")
-        for sub in (self.sph, self.dem, self.bond):
+        for sub in (self.sph, self.dem, self.bond, self.fpi):
             if sub is not None:
                 sub.validate()
         return self

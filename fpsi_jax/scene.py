@@ -54,13 +54,17 @@ class SolidBlock:
 
     x, v (n, 2), omega (n,)   positions, velocities, angular velocities
     radius, mass, inertia     per disc (per unit thickness unless the scene says otherwise)
-    fixed (n,) bool           clamped discs: never move nor rotate
+    fixed (n,) bool           kinematic discs: they keep their initial velocity ``v`` whatever
+                              the forces (v = 0: clamped), e.g. a gate lifted at constant speed
     f_ext (n, 2)              external force (e.g. a tip load), ramped by dem.load_ramp
     structure (n,) bool       discs that take part in the SPH sums as boundary-like particles
                               when the scene couples fluid and structure (Scene.options
                               'fsi'); None: all of them
     sph_volume (n,)           area each structure disc stands for in the SPH sums (its packing
                               cell, e.g. d² for a square packing); None: (2R)²
+    grain (n,) bool           free grains that feel the fluid through voidage, pressure and
+                              drag when the scene has option 'fpi'; None: every disc that
+                              is neither fixed nor structure
     """
 
     x: np.ndarray
@@ -73,6 +77,7 @@ class SolidBlock:
     f_ext: np.ndarray
     structure: np.ndarray | None = None
     sph_volume: np.ndarray | None = None
+    grain: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -81,6 +86,12 @@ class SolidBlock:
     def structure_indices(self) -> np.ndarray:
         s = np.ones(self.n, bool) if self.structure is None else np.asarray(self.structure, bool)
         return np.nonzero(s)[0].astype(np.int32)
+
+    def grain_indices(self) -> np.ndarray:
+        if self.grain is not None:
+            return np.nonzero(np.asarray(self.grain, bool))[0].astype(np.int32)
+        s = np.ones(self.n, bool) if self.structure is None else np.asarray(self.structure, bool)
+        return np.nonzero(~s & ~np.asarray(self.fixed, bool))[0].astype(np.int32)
 
     def volumes(self) -> np.ndarray:
         if self.sph_volume is None:
@@ -227,6 +238,8 @@ class Scene:
             "n_walls": self.walls.n if self.walls else 0,
             "n_structure": (int(self.solid.structure_indices().size)
                             if self.solid is not None and self.options.get("fsi") else 0),
+            "n_grain": (int(self.solid.grain_indices().size)
+                        if self.solid is not None and self.options.get("fpi") else 0),
         })
 
 
@@ -255,6 +268,8 @@ class NeighborConfig:
 
 BOUNDARY_PRESSURE = ("fixed", "extrapolated")
 BOND_SECTIONS = ("slab", "circular")
+VOIDAGE = ("3d", "2d")
+FPI_PRESSURE = ("archimedes", "gradient")
 
 
 @dataclass(frozen=True)
@@ -280,6 +295,18 @@ class Physics:
       dem_neighbors        the contact family's list (cut-off 2 R_max), None without discs
       bond_section         'slab' (2D, A = 2R̄t, I = (2/3)tR̄³) or 'circular'
                            (A = πR̄², I = πR̄⁴/4; K6.1's Itasca beam)
+
+    Couplings:
+      fsi, n_structure     fluid–structure method (fsi.METHODS) and structure disc count
+      dem_substeps         DEM sub-steps per SPH step (multi-rate)
+      fpi, n_grain         fluid–particle coupling of the grains (fpi.py): voidage in the
+                           fluid equations (W42–43), pressure force (buoyancy), drag,
+                           lubrication
+      voidage              '3d' (2D area fraction mapped to the equivalent 3D packing,
+                           default) or '2d' (the raw area fraction)
+      fpi_pressure         the grains' buoyancy: 'archimedes' (ρ_f V_p |g|, default) or
+                           'gradient' (−V_p ∇P of the SPH pressure); see fpi.py
+      lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)
     """
 
     n_fluid: int
@@ -304,10 +331,16 @@ class Physics:
     fsi: str | None = None
     n_structure: int = 0
     dem_substeps: int = 1
+    fpi: bool = False
+    n_grain: int = 0
+    voidage: str = "3d"
+    fpi_pressure: str = "archimedes"
+    lubrication: bool = True
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
                "artificial_viscosity", "boundary_pressure", "h_margin", "rho_tolerance", "x64", "skin",
-               "capacity_multiplier", "bond_section", "dem_skin", "fsi", "dem_substeps")
+               "capacity_multiplier", "bond_section", "dem_skin", "fsi", "dem_substeps", "fpi",
+               "voidage", "lubrication", "fpi_pressure")
 
     @classmethod
     def for_scene(cls, scene: Scene, **overrides) -> "Physics":
@@ -348,6 +381,23 @@ class Physics:
             n_structure = int(scene.solid.structure_indices().size)
             if n_structure == 0:
                 raise ParameterError("option fsi is set but no disc is marked as structure")
+        n_grain = 0
+        if opts.get("fpi"):
+            if scene.fluid is None or scene.solid is None:
+                raise ParameterError("option fpi needs both fluid and solid discs in the scene")
+            if scene.params.fpi is None:
+                raise ParameterError("option fpi is set but params.fpi is None")
+            n_grain = int(scene.solid.grain_indices().size)
+            if n_grain == 0:
+                raise ParameterError("option fpi is set but no disc is a grain")
+            both = np.intersect1d(scene.solid.grain_indices(), scene.solid.structure_indices())
+            if method is not None and both.size:
+                raise ParameterError(f"disc {int(both[0])} is both a grain and structure")
+        if opts.get("voidage", "3d") not in VOIDAGE:
+            raise ParameterError(f"voidage must be one of {VOIDAGE}, got {opts['voidage']!r}")
+        if opts.get("fpi_pressure", "archimedes") not in FPI_PRESSURE:
+            raise ParameterError(f"fpi_pressure must be one of {FPI_PRESSURE}, got "
+                                 f"{opts['fpi_pressure']!r}")
         section = opts.get("bond_section", "slab")
         if section not in BOND_SECTIONS:
             raise ParameterError(f"bond_section must be one of {BOND_SECTIONS}, got {section!r}")
@@ -362,7 +412,10 @@ class Physics:
         dem_nb = None
         if scene.solid is not None:
             r_max = float(np.max(scene.solid.radius))
-            dem_nb = NeighborConfig(r_cut=2.0 * r_max, skin=dem_skin * r_max, origin=origin,
+            reach = 1.0
+            if n_grain and opts.get("lubrication", True):
+                reach += float(scene.params.fpi.lub_cutoff)   # W24 acts up to a gap cut-off
+            dem_nb = NeighborConfig(r_cut=2.0 * r_max * reach, skin=dem_skin * r_max, origin=origin,
                                     box=box, capacity_multiplier=float(cap))
         return cls(n_fluid=scene.fluid.n if scene.fluid else 0,
                    n_boundary=scene.boundary.n if scene.boundary else 0,
@@ -370,7 +423,7 @@ class Physics:
                    n_solid=scene.solid.n if scene.solid else 0,
                    n_bonds=scene.bonds.n if scene.bonds else 0,
                    n_walls=scene.walls.n if scene.walls else 0,
-                   dem_neighbors=dem_nb, n_structure=n_structure, **opts)
+                   dem_neighbors=dem_nb, n_structure=n_structure, n_grain=n_grain, **opts)
 
     @property
     def has_fluid(self) -> bool:
@@ -398,7 +451,15 @@ class Physics:
             m += ["bonds"] if self.n_bonds else []
         if self.has_fsi:
             m += [f"fsi.{self.fsi}"]
+        if self.has_fpi:
+            m += ["fpi.voidage", "fpi.drag", f"fpi.buoyancy.{self.fpi_pressure}",
+                  "fpi.reaction"]
+            m += ["fpi.lubrication"] if self.lubrication else []
         return tuple(m)
+
+    @property
+    def has_fpi(self) -> bool:
+        return bool(self.fpi) and self.n_grain > 0
 
     @property
     def has_fsi(self) -> bool:

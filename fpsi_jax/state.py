@@ -98,6 +98,24 @@ class FsiState:
     force: Any
 
 
+@pytree_dataclass
+class FpiState:
+    """Grains in the fluid (``fpi.py``): which discs (``idx`` into the solid arrays), their
+    volume V_p and diameter d, the fluid voidage ε of every fluid particle (W2, what the
+    fluid equations W42–W43 use), and at the last SPH evaluation each grain's voidage ε_p
+    (W18), Shepard fluid velocity ū_f (W21), wetness Σ_f V_f W_pf (0: dry) and ``force``,
+    the fluid's force, pressure (buoyancy) + drag (W19), which the DEM sub-steps hold."""
+
+    idx: Any
+    vol: Any
+    d: Any
+    eps: Any
+    eps_p: Any
+    u_f: Any
+    wet: Any
+    force: Any
+
+
 BREAK_MODES = {0: "intact", 1: "tension", 2: "shear"}
 
 
@@ -144,7 +162,7 @@ class Status:
 @pytree_dataclass
 class State:
     """Everything that changes during a run. ``nbrs`` is the jax-md neighbour list of the SPH
-    family (rows: fluid, boundary, then structure particles), ``solid_nbrs`` that of the DEM contacts."""
+    family (rows: fluid, boundary, structure particles, then grains), ``solid_nbrs`` that of the DEM contacts."""
 
     t: Any
     step: Any
@@ -157,3 +175,4 @@ class State:
     solid_nbrs: Any = None
     walls: WallState | None = None
     fsi: FsiState | None = None
+    fpi: FpiState | None = None

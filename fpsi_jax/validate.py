@@ -128,6 +128,7 @@ def dam_break(quick: bool = False, overrides: dict | None = None):
 
 from . import validate_solids  # noqa: E402,F401  (registers the DEM and bond cases)
 from . import validate_fsi  # noqa: E402,F401  (registers the fluid–structure cases)
+from . import validate_fpi  # noqa: E402,F401  (registers the fluid–particle cases)
 
 
 def run(names=None, quick=False, overrides=None) -> list[Record]:

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from fpsi_jax import fpi
+from fpsi_jax import fpi, kernels
 
 pytestmark = pytest.mark.usefixtures("float64")
 
@@ -41,9 +41,48 @@ def test_drag_force_is_along_the_slip_with_W19_magnitude():
     np.testing.assert_allclose(f, beta / 0.05 * float(vol[0]) * rel, rtol=1e-12)
 
 
-def test_buoyancy_is_eps_rho_v_g_upwards():
-    f = np.asarray(fpi.buoyancy(jnp.asarray([0.9]), jnp.asarray([2e-6]), RHO, (0.0, -9.81)))
-    np.testing.assert_allclose(f[0], [0.0, 0.9 * RHO * 2e-6 * 9.81], rtol=1e-12)
+def test_pressure_gradient_is_exact_for_a_linear_field_even_with_a_cut_kernel():
+    kern = kernels.get("wendland")
+    h, dx = 0.003, 0.0015
+    xs = np.stack(np.meshgrid(np.arange(-4, 5) * dx, np.arange(0, 5) * dx), -1).reshape(-1, 2)
+    x_p = jnp.asarray([[0.0002, 0.0003]])          # near the "free surface" y < 0 is empty
+    p = 1000.0 + 3000.0 * xs[:, 0] - 9810.0 * xs[:, 1]
+    n = xs.shape[0]
+    rows = fpi.grain_rows(kern, jnp.asarray(xs), jnp.full(n, h), jnp.full(n, dx * dx), x_p,
+                          jnp.arange(n)[None, :], n)
+    grad = np.asarray(fpi.pressure_gradient(rows, jnp.asarray(p)))[0]
+    np.testing.assert_allclose(grad, [3000.0, -9810.0], rtol=1e-6)   # 1e-9 ridge
+    force = np.asarray(fpi.pressure_force(rows, jnp.asarray(p), jnp.asarray([2e-6])))[0]
+    np.testing.assert_allclose(force, [-2e-6 * 3000.0, 2e-6 * 9810.0], rtol=1e-6)
+
+
+def test_grain_drag_uses_shepard_averages_and_the_3d_voidage():
+    kern = kernels.get("wendland")
+    h = 0.003
+    xf = jnp.asarray([[0.001, 0.0], [-0.001, 0.0], [0.0, 0.002]])
+    vf = jnp.asarray([[0.1, 0.0], [0.1, 0.0], [0.1, 0.3]])
+    eps_f = jnp.asarray([0.9, 0.8, 0.95])
+    rows = fpi.grain_rows(kern, xf, jnp.full(3, h), jnp.full(3, 2e-6), jnp.zeros((1, 2)),
+                          jnp.asarray([[0, 1, 2, 3]]), 3)
+    w = np.asarray(kern.w(jnp.asarray([0.001, 0.001, 0.002]), h))
+    eps2 = float((w * np.asarray(eps_f)).sum() / w.sum())
+    u = (w[:, None] * np.asarray(vf)).sum(0) / w.sum()
+    eps_p, u_f, wet, drag = fpi.grain_drag(rows, eps_f, vf, jnp.zeros((1, 2)),
+                                           jnp.asarray([np.pi * D * D / 4]), jnp.asarray([D]),
+                                           RHO, MU)
+    np.testing.assert_allclose(np.asarray(u_f[0]), u, rtol=1e-12)
+    assert float(wet[0]) == pytest.approx(2e-6 * w.sum(), 1e-12)
+    assert float(eps_p[0]) == pytest.approx(float(fpi.voidage_3d(eps2)), 1e-12)
+    want = fpi.drag_force(eps_p, u_f, jnp.zeros((1, 2)), jnp.asarray([np.pi * D * D / 4]),
+                          RHO, D, MU)
+    np.testing.assert_allclose(np.asarray(drag), np.asarray(want), rtol=1e-12)
+    dry = fpi.grain_drag(rows, eps_f, vf, jnp.zeros((1, 2)), jnp.asarray([1e-6]),
+                         jnp.asarray([D]), RHO, MU)
+    assert float(jnp.abs(dry[3]).sum()) > 0
+    far = fpi.grain_rows(kern, xf, jnp.full(3, h), jnp.full(3, 2e-6), jnp.asarray([[1.0, 1.0]]),
+                         jnp.asarray([[3, 3, 3, 3]]), 3)
+    assert float(jnp.abs(fpi.grain_drag(far, eps_f, vf, jnp.zeros((1, 2)), jnp.asarray([1e-6]),
+                                        jnp.asarray([D]), RHO, MU)[3]).sum()) == 0.0
 
 
 def test_lubrication_value_regularisation_cutoff_and_pair_symmetry():
@@ -61,12 +100,29 @@ def test_lubrication_value_regularisation_cutoff_and_pair_symmetry():
     assert float(jnp.abs(far).sum()) == 0.0
 
 
-def test_voidage_and_shepard_averages():
+def test_voidage_is_gathered_from_the_grain_rows_and_maps_to_3d():
+    # two grains (volumes 0.1, 0.2) and three fluid particles; grain 0 sees fluid 0 and 1,
+    # grain 1 sees fluid 1; fluid 2 sees none. Slot 2 is padding.
+    w = jnp.asarray([[2.0, 1.0, 5.0], [0.5, 9.0, 9.0]])
+    idx = jnp.asarray([[0, 1, 3], [1, 3, 3]])
+    valid = idx < 3
+    eps2 = fpi.fluid_voidage(w, jnp.asarray([0.1, 0.2]), idx, valid, 3)
+    np.testing.assert_allclose(np.asarray(eps2), [1 - 0.2, 1 - 0.1 - 0.1, 1.0], rtol=1e-12)
+    k = 2 / np.sqrt(np.pi * np.sqrt(3))
+    np.testing.assert_allclose(np.asarray(fpi.voidage_3d(eps2)),
+                               [1 - k * 0.2 ** 1.5, 1 - k * 0.2 ** 1.5, 1.0], rtol=1e-12)
+    # hexagonal discs (area fraction π/(2√3)) map to face-centred spheres (π/(3√2))
+    hex2 = 1 - np.pi / (2 * np.sqrt(3))
+    assert float(fpi.voidage_3d(hex2)) == pytest.approx(1 - np.pi / (3 * np.sqrt(2)), 1e-12)
+    # a dense overlap is clipped at EPS_MIN
+    assert float(fpi.fluid_voidage(w[:1] * 10, jnp.asarray([1.0]), idx[:1], valid[:1], 3)[0]) \
+        == fpi.EPS_MIN
+
+
+def test_shepard_averages():
     w = jnp.asarray([[2.0, 1.0, 5.0]])
     vol = jnp.asarray([[0.1, 0.3, 9.0]])
     valid = jnp.asarray([[True, True, False]])
-    eps = fpi.fluid_voidage(w, vol, valid)
-    assert float(eps[0]) == pytest.approx(1 - 0.5)
     vals = jnp.asarray([[[1.0, 0.0], [0.0, 2.0], [7.0, 7.0]]])
     avg, den = fpi.shepard(vals, w, vol, valid)
     np.testing.assert_allclose(np.asarray(avg[0]), [0.2 / 0.5, 0.6 / 0.5])
@@ -100,3 +156,93 @@ def test_drag_gradient_wrt_viscosity_matches_finite_differences():
     e = 1e-8
     fd = (float(total(MU + e)) - float(total(MU - e))) / (2 * e)
     np.testing.assert_allclose(g, fd, rtol=1e-6)
+
+
+# --- the coupling in the step -----------------------------------------------------------------
+def _grain_scene(**kw):
+    from fpsi_jax import scenes
+    base = dict(width=0.012, height=0.012, d=0.0025, y0=0.006, x0=0.006, dx=0.0015,
+                h0=0.003, rho_grain=1000.0, x64=True, t_end=0.01)
+    return scenes.build("sedimentation", **{**base, **kw})
+
+
+def _init(scene, **opts):
+    from fpsi_jax import integrate
+    from fpsi_jax.simulate import setup
+    phys, params = setup(scene, **opts)
+    p = params.as_arrays(jnp.float64)
+    return phys, p, integrate.init_state(scene, phys, p)
+
+
+def test_still_water_beside_a_grain_is_in_balance():
+    """Fluid among grains gets mass ε ρ0 Δx² (builder) and the pressure bracket
+    (P_i + P_j)/(ε_iρ_i ε_jρ_j): a fluid particle next to a grain of the fluid's density starts
+    in balance, and so does the grain (buoyancy = weight)."""
+    scene = _grain_scene(width=0.02, height=0.06, x0=0.01, y0=0.04)
+    phys, p, st = _init(scene)
+    x, a = np.asarray(st.fluid.x), np.asarray(st.fluid.acc)
+    near = np.linalg.norm(x - [0.01, 0.04], axis=1) < 0.006
+    assert near.sum() > 20 and float(np.asarray(st.fpi.eps).min()) < 0.75   # a real well
+    assert np.abs(a[near]).max() < 0.02 * 9.81
+    weight = float(scene.solid.mass[0]) * 9.81
+    assert float(st.fpi.force[0, 1]) == pytest.approx(weight, rel=1e-9)      # Archimedes
+
+
+def test_grain_forces_and_their_reaction_sum_to_zero():
+    """Σ_p F_p + Σ_f m_f a_f(reaction) = 0 to round-off in the stepped state (W47–W48)."""
+    from fpsi_jax import integrate
+    scene = _grain_scene(rho_grain=2500.0)
+    phys, p, st = _init(scene)
+    st = jax.jit(lambda s: integrate.rollout(phys, s, p, 30)[0])(st)
+    f = st.fluid
+    n_sph = st.nbrs.idx.shape[0] - 1
+    rows = fpi.grain_rows(kernels.get(phys.kernel), f.x, f.h, f.mass / (st.fpi.eps * f.rho),
+                          st.solid.x[st.fpi.idx], st.nbrs.idx[n_sph:], phys.n_fluid)
+    reaction = f.mass[:, None] * fpi.reaction_acceleration(rows, st.fpi.force, f.mass)
+    total = np.asarray(reaction.sum(0) + st.fpi.force.sum(0))
+    assert float(jnp.abs(st.fpi.force).max()) > 1e-3
+    np.testing.assert_allclose(total, 0.0, atol=1e-14 * float(jnp.abs(st.fpi.force).sum()))
+
+
+def test_lubrication_on_discs_obeys_newtons_third_law():
+    rng = np.random.default_rng(5)
+    n = 12
+    x = jnp.asarray(rng.random((n, 2)) * 0.01)
+    v = jnp.asarray(rng.normal(size=(n, 2)) * 0.01)
+    r = jnp.full(n, 0.0012)
+    idx = jnp.asarray([[j for j in range(n) if j != i] for i in range(n)])
+    wet = jnp.asarray(rng.random(n) > 0.3)
+    f = fpi.lubrication_on_discs(x, v, r, wet, idx, MU, 0.02, 2.0)
+    assert float(jnp.abs(f).max()) > 0
+    np.testing.assert_allclose(np.asarray(f.sum(0)), 0.0, atol=1e-12 * float(jnp.abs(f).sum()))
+    assert np.all(np.asarray(f)[~np.asarray(wet)] == 0.0)        # dry grains: no lubrication
+
+
+def test_fpi_is_compiled_only_with_grains(step_hlo, tiny_tank):
+    _, scopes, _ = step_hlo(_grain_scene(), jnp.float64)
+    assert {"fpi.voidage", "fpi.drag", "fpi.buoyancy", "fpi.reaction", "fpi.lubrication"} <= scopes
+    _, scopes, _ = step_hlo(_grain_scene(), jnp.float64, lubrication=False)
+    assert "fpi.lubrication" not in scopes
+    _, scopes, files = step_hlo(tiny_tank)
+    assert not [s for s in scopes if s.startswith("fpi")] and "fpi.py" not in files
+
+
+def test_grain_velocity_gradient_wrt_viscosity_matches_finite_differences():
+    """d v_p(t) / d μ through 60 coupled steps (SPH, DEM, drag, voidage) vs a central
+    difference."""
+    from fpsi_jax import integrate
+    scene = _grain_scene(rho_grain=2500.0)
+    phys, p, st = _init(scene)
+
+    @jax.jit
+    def vy(mu):
+        q = p.replace(sph=p.sph.replace(mu=mu))
+        end, _ = integrate.rollout(phys, st, q, 60)
+        return end.solid.v[0, 1]
+
+    mu = jnp.asarray(0.01)
+    g = float(jax.grad(vy)(mu))
+    h = 1e-5
+    fd = (float(vy(mu + h)) - float(vy(mu - h))) / (2 * h)
+    assert g != 0.0
+    assert g == pytest.approx(fd, rel=1e-4)

@@ -59,7 +59,7 @@ def _evaluate(method, xf, vf, rhof, xs, vs, acc_s=None, mu=0.0, flags=None, sp=N
     out = integrate.fluid_update(phys, params, jnp.asarray(xf), jnp.asarray(vf),
                                  jnp.asarray(rhof), jnp.full(nf, H), m_f, None, nbrs, 0.0,
                                  (jnp.asarray(xs), jnp.asarray(vs), acc_s, fs))
-    return out, m_f, fs
+    return out[:6], m_f, fs
 
 
 def _p(rho):

@@ -7,6 +7,7 @@ from ..params import ParameterError
 from .beams import bond_tension, cantilever, itasca_beam
 from .dam_break import dam_break
 from .dem_cases import collision, dry_dam_break, rolling
+from .fpi_cases import fpsi_failure, sedimentation, two_phase_dam_break
 from .fsi_cases import elastic_gate, gate_failure, hydrostatic_plate
 from .hydrostatic_tank import hydrostatic_tank
 
@@ -22,6 +23,9 @@ SCENES = {
     "hydrostatic_plate": hydrostatic_plate,
     "elastic_gate": elastic_gate,
     "gate_failure": gate_failure,
+    "sedimentation": sedimentation,
+    "two_phase_dam_break": two_phase_dam_break,
+    "fpsi_failure": fpsi_failure,
 }
 
 
