@@ -11,6 +11,9 @@ Layout of a file::
     /walls/{a (w,2), b (w,2)}
     /fsi/{idx (s,), force (T,s,2), p (T,s)}   structure discs in the SPH sums: disc index,
                                                the fluid's force on each and their pressure
+    /fluid/eps (T,n)                           fluid voidage, with grains (fpi)
+    /fpi/{idx (g,), force (T,g,2), eps_p (T,g)}  grains: disc index, the fluid's force on
+                                               each (buoyancy + drag) and their voidage
     attrs: scene, physics, params (JSON), fpsi_version, status
 
 Datasets are extendible along the time axis and the file is flushed after every frame, so
@@ -79,6 +82,12 @@ class Writer:
             self.f.create_dataset("fsi/idx", data=scene.solid.structure_indices())
             self._make("fsi/force", (self.n_structure, 2), np.float32)
             self._make("fsi/p", (self.n_structure,), np.float32)
+        self.n_grain = phys.n_grain if phys.has_fpi else 0
+        if self.n_grain:
+            self._make("fluid/eps", (nf,), np.float32)
+            self.f.create_dataset("fpi/idx", data=scene.solid.grain_indices())
+            self._make("fpi/force", (self.n_grain, 2), np.float32)
+            self._make("fpi/eps_p", (self.n_grain,), np.float32)
         if scene.walls is not None:
             self.f.create_dataset("walls/a", data=np.asarray(scene.walls.a, np.float32))
             self.f.create_dataset("walls/b", data=np.asarray(scene.walls.b, np.float32))
@@ -109,6 +118,9 @@ class Writer:
             data.update({f"bonds/{k}": getattr(state.bonds, k) for k in BOND_FORCES})
         if self.n_structure:
             data.update({"fsi/force": state.fsi.force, "fsi/p": state.fsi.p})
+        if self.n_grain:
+            data.update({"fluid/eps": state.fpi.eps, "fpi/force": state.fpi.force,
+                         "fpi/eps_p": state.fpi.eps_p})
         data = {k: np.asarray(v) for k, v in data.items()}
         for k, v in data.items():
             if not np.all(np.isfinite(v)):
@@ -199,7 +211,7 @@ def write_xdmf(h5path, f=None):
                 for c, lab in enumerate(("vx", "vy")):
                     parts.append(f'<Attribute Name="{lab}" AttributeType="Scalar" Center="Node">'
                                  + _slab(name, f"/{phase}/v", k, nf, 2, c, T) + "</Attribute>")
-                for q in scalars:
+                for q in [q for q in scalars + ("eps",) if f"{phase}/{q}" in f]:
                     parts.append(f'<Attribute Name="{q}" AttributeType="Scalar" Center="Node">'
                                  + _slab(name, f"/{phase}/{q}", k, nf, total=T) + "</Attribute>")
                 if phase == "solid":
@@ -251,6 +263,7 @@ class Run:
     status: str
     message: str
     fsi: dict | None = None
+    fpi: dict | None = None
 
     @property
     def frames(self) -> int:
@@ -274,4 +287,5 @@ def read(path) -> Run:
                    scene=json.loads(a["scene"]), physics=json.loads(a["physics"]),
                    params=json.loads(a["params"]), status=str(a.get("status", "")),
                    message=str(a.get("message", "")),
-                   fsi={k: f[f"fsi/{k}"][:] for k in f["fsi"]} if "fsi" in f else {})
+                   fsi={k: f[f"fsi/{k}"][:] for k in f["fsi"]} if "fsi" in f else {},
+                   fpi={k: f[f"fpi/{k}"][:] for k in f["fpi"]} if "fpi" in f else {})
