@@ -5,7 +5,7 @@
 
 Runs the seed's resolution (fluid 1.5 mm → 1.538 mm fitted, h 3 mm, d 2.5 mm) and fluid
 spacings 1.0 and 2.5 mm (h = 2Δx), plus the seed resolution with the 'gradient' buoyancy
-and with the raw 2D voidage in the drag. Writes experiments/results/sedimentation.json
+and with the 3D-mapped voidage in the fluid equations. Writes experiments/results/sedimentation.json
 (errors vs Zhang 2019 FPM, settling velocity, run time), sedimentation_y.csv (y(t) of each
 run) and sedimentation.png (y(t) and v(t) against the reference).
 """
@@ -30,7 +30,7 @@ RUNS = {   # label: (builder overrides, physics options)
     "dx 1.0 mm, h 2 mm": ({"dx": 0.001, "h0": 0.002, "dx_boundary": 0.001}, {}),
     "dx 2.5 mm, h 5 mm": ({"dx": 0.0025, "h0": 0.005, "dx_boundary": 0.0025}, {}),
     "seed, gradient buoyancy": ({}, {"fpi_pressure": "gradient"}),
-    "seed, 2D voidage in the drag": ({"voidage": "2d"}, {}),
+    "seed, mapped voidage in the fluid": ({"voidage": "mapped"}, {}),
 }
 
 if __name__ == "__main__":

@@ -8,15 +8,19 @@ so each grain row of the list holds its fluid neighbours; everything here works 
 
 Choices the seeds leave open (all documented in the README's design section):
 
-* Voidage. The fluid equations use the area voidage ε = 1 − Σ V_p W of the 2D model: with
-  it the volumes add up (fluid ε V plus grains (1 − ε) V) and a fluid particle at rest
-  next to a grain is in equilibrium (see the buoyancy note below). But in 2D a disc packing's
-  area fraction reaches 0.91 (ε = 0.09), far outside the 3D packings that Ergun and Wen–Yu
-  were fitted to, and a 2D bed of touching discs would be impermeable. So the drag closure
-  (β, Re) sees the grain's voidage mapped to the equivalent 3D packing (Physics.voidage =
-  '3d', default), ε₃ = 1 − 2/√(π√3) (1 − ε₂)^(3/2), which sends the densest hexagonal disc
-  packing to the densest sphere packing (ε 0.26); '2d' uses the area voidage there too.
-  The fluid voidage is clipped at EPS_MIN (just below the hexagonal packing's 0.093).
+* Voidage. In 2D a disc packing's area fraction reaches 0.91 (ε = 0.09), far outside the
+  3D packings that Ergun and Wen–Yu were fitted to; a 2D bed of touching discs would even be
+  impermeable. The drag closure (β, Re) therefore always sees the voidage mapped to the
+  equivalent 3D packing, ε₃ = 1 − 2/√(π√3) (1 − ε₂)^(3/2), which sends the densest
+  hexagonal disc packing to the densest sphere packing (0.09 → 0.26). What the fluid
+  equations see is Physics.voidage:
+  'area' — the area voidage ε₂ = 1 − Σ V_p W. Volumes add up (fluid ε V plus grains
+  (1 − ε) V), so a fluid particle at rest beside a grain is in balance and a grain of the
+  fluid's density stays put (issue-5 figures: 0.03 d in 0.5 s). For isolated grains.
+  'mapped' — ε₃ as well. In a packed bed the fluid keeps 26 % of the space instead of 9 %;
+  with 'area' the bed's light fluid particles (ε ≈ 0.1) were driven through the floor within
+  200 steps. The price: volumes no longer add up (a grain of the fluid's density sinks, 4.6 d
+  in 0.5 s for a 2.5 mm grain among 1.5 mm particles). For beds.
 * Buoyancy. By default Archimedes' ρ_f V_p |g| (Physics.fpi_pressure = 'archimedes'):
   W25 without its ε_p, the one static force consistent with the fluid equations (a fluid
   particle of mass ερV at rest beside a grain is in balance only if the reaction handed to
@@ -38,7 +42,7 @@ from . import kernels, sph
 
 ERGUN_LIMIT = 0.8        # W20: Ergun for ε ≤ 0.8, Wen–Yu above
 RE_NEWTON = 1000.0       # W22: C_d = 0.44 above
-EPS_MIN = 0.08           # floor of the fluid voidage (hexagonal disc packing: 0.093)
+EPS_MIN = 0.08           # floor of the area voidage (hexagonal disc packing: 0.093)
 _PACK_3D = 2.0 / (jnp.pi * 3.0 ** 0.5) ** 0.5   # 2/√(π√3)
 
 
@@ -53,14 +57,15 @@ def voidage_3d(eps2d):
     return 1.0 - _PACK_3D * jnp.clip(1.0 - eps2d, 0.0, 1.0) ** 1.5
 
 
-def fluid_voidage(w, vol_p, idx, valid, n_fluid):
+def fluid_voidage(w, vol_p, idx, valid, n_fluid, mode="area"):
     """ε_f = 1 − Σ_p V_p W(x_f − x_p, h_f) (discrete W2), gathered from the grain rows: each
     grain adds V_p W to its fluid neighbours. ``w`` (n_g, K) kernel values, ``vol_p`` (n_g,).
-    The area voidage, clipped to [EPS_MIN, 1]."""
+    The area voidage clipped to [EPS_MIN, 1], mapped to 3D when ``mode`` is 'mapped'."""
     share = jnp.where(valid, w * vol_p[:, None], 0.0)
     target = jnp.where(valid, idx, n_fluid)
     solid = jnp.zeros(n_fluid + 1, w.dtype).at[target.reshape(-1)].add(share.reshape(-1))
-    return jnp.clip(1.0 - solid[:n_fluid], EPS_MIN, 1.0)
+    eps = jnp.clip(1.0 - solid[:n_fluid], EPS_MIN, 1.0)
+    return voidage_3d(eps) if mode == "mapped" else eps
 
 
 def shepard(values, w, vol, valid):
@@ -184,25 +189,47 @@ def pressure_force(rows: GrainRows, p_f, vol_p):
     return -vol_p[:, None] * pressure_gradient(rows, p_f)
 
 
-def grain_drag(rows: GrainRows, eps_f, v_f, v_p, vol_p, d_p, rho_f, mu, voidage_mode="3d"):
+def grain_drag(rows: GrainRows, eps_f, v_f, v_p, vol_p, d_p, rho_f, mu, voidage_mode="area"):
     """Grain voidage ε_p (W18), fluid velocity ū_f (W21), wetness Σ V_f W and the drag on
-    each grain (W19–W23). ε_p is the Shepard average of the fluid's area voidage, mapped to
-    3D for the closure when ``voidage_mode`` is '3d'. A grain without fluid neighbours is
-    dry: no drag. Returns (ε_p as the closure sees it, ū_f, wet, drag)."""
+    each grain (W19–W23). ε_p is the Shepard average of the fluid's voidage, mapped to 3D
+    for the closure when the fluid's is the area voidage (``voidage_mode`` 'area'). A grain
+    without fluid neighbours is dry: no drag. Returns (ε_p as the closure sees it, ū_f,
+    wet, drag)."""
     eps_p, wet = shepard(sph.gather(eps_f, rows.idx), rows.w, rows.vol, rows.valid)
     u_f, _ = shepard(sph.gather(v_f, rows.idx, 0.0), rows.w, rows.vol, rows.valid)
     is_wet = wet > 0
-    if voidage_mode == "3d":
+    if voidage_mode == "area":
         eps_p = voidage_3d(eps_p)
     eps_p = jnp.where(is_wet, jnp.clip(eps_p, EPS_MIN, 1.0 - 1e-9), 1.0 - 1e-9)
     drag = drag_force(eps_p, u_f, v_p, vol_p, rho_f, d_p, mu)
     return eps_p, u_f, wet, jnp.where(is_wet[:, None], drag, 0.0)
 
 
-def reaction_acceleration(rows: GrainRows, force_p, m_f):
-    """The fluid's acceleration from handing the drag's −F_p out by kernel weights
-    (W47–W48)."""
-    w = reaction_weights(rows.w, rows.vol, rows.valid)
+def wall_share(kern, x_b, h_b, vol_b, x_p, idx_g, n_fluid):
+    """Σ_b V_b W(|x_p − x_b|, h_b) over the SPH boundary particles among each grain's
+    neighbours (entries n_fluid … n_fluid + n_b − 1 of ``idx_g``): the wall's part of the
+    kernel support, which takes its share of the reaction (see
+    :func:`reaction_acceleration`)."""
+    nb = x_b.shape[0]
+    k = idx_g - n_fluid
+    valid = (k >= 0) & (k < nb)
+    nbr = sph.gather(jnp.concatenate([x_b, h_b[:, None], vol_b[:, None]], axis=1),
+                     jnp.where(valid, k, nb))
+    r = kernels.safe_sqrt(jnp.sum((x_p[:, None, :] - nbr[..., 0:2]) ** 2, axis=-1))
+    return jnp.sum(jnp.where(valid, kern.w(r, nbr[..., 2]) * nbr[..., 3], 0.0), axis=1)
+
+
+def reaction_acceleration(rows: GrainRows, force_p, m_f, wall=None):
+    """The fluid's acceleration from handing −F_p out by kernel weights (W47–W48):
+    fluid particle f gets the share V_f W_pf / (Σ_f V_f W_pf + wall_p). ``wall`` (n_g,), the
+    boundary particles' Σ V_b W_pb (:func:`wall_share`), lets a wall next to a grain take
+    its part, as the floor carries the pressure that buoys a grain lying on it. Without it
+    (W48's Shepard normalisation) the few fluid particles between a grain and the floor
+    took the whole buoyancy: in a grain bed they were driven through the floor at
+    250 m/s². Away from walls the shares sum to one and Σ reaction = −Σ F_p exactly."""
+    wv = jnp.where(rows.valid, rows.w * rows.vol, 0.0)
+    den = jnp.sum(wv, axis=1, keepdims=True) + (0.0 if wall is None else wall[:, None])
+    w = wv / jnp.where(den > 0, den, 1.0)
     return reaction_on_fluid(force_p, w, rows.idx, m_f.shape[0]) / m_f[:, None]
 
 
@@ -222,7 +249,7 @@ def lubrication_on_discs(x, v, radius, wet, idx, mu, gap_min, cutoff):
     return jnp.sum(jnp.where(pair[..., None], f, 0.0), axis=1)
 
 
-def voidage_at(kern, x_f, h_f, x_p, vol_p):
+def voidage_at(kern, x_f, h_f, x_p, vol_p, mode="area"):
     """The fluid voidage at ``x_f`` for grains at ``x_p`` by brute force over all pairs, with
     the same kernel sums as the step (for scene builders: fluid particles among grains get
     mass ε ρ0 Δx², so that their volume m/(ερ) is their lattice cell)."""
@@ -230,4 +257,4 @@ def voidage_at(kern, x_f, h_f, x_p, vol_p):
     n_f = x_f.shape[0]
     idx = jnp.broadcast_to(jnp.arange(n_f), (x_p.shape[0], n_f))
     rows = grain_rows(kern, x_f, h_f, jnp.ones(n_f, x_f.dtype), x_p, idx, n_f)
-    return fluid_voidage(rows.w, jnp.asarray(vol_p), rows.idx, rows.valid, n_f)
+    return fluid_voidage(rows.w, jnp.asarray(vol_p), rows.idx, rows.valid, n_f, mode)

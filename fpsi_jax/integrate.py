@@ -115,7 +115,7 @@ def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nb
     if fp is not None:
         with jax.named_scope("fpi.voidage"):
             rows = fpi.grain_rows(kern, x, h, mass / rho_c_new, xp_, idx_g, nf)
-            eps = fpi.fluid_voidage(rows.w, fp.vol, rows.idx, rows.valid, nf)
+            eps = fpi.fluid_voidage(rows.w, fp.vol, rows.idx, rows.valid, nf, phys.voidage)
         rho_new = rho_c_new / eps
     else:
         rho_new = rho_c_new
@@ -160,7 +160,9 @@ def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nb
                 lift = fpi.pressure_force(rows, p_new, fp.vol)
             force = drag + jnp.where((wet > 0)[:, None], lift, 0.0)
         with jax.named_scope("fpi.reaction"):
-            acc = acc + fpi.reaction_acceleration(rows, force, mass)
+            wall = None if b is None else fpi.wall_share(kern, b.x, b.h, b.mass / b.rho, xp_,
+                                                         idx_g, nf)
+            acc = acc + fpi.reaction_acceleration(rows, force, mass, wall)
         fp = fp.replace(eps=eps, eps_p=eps_p, u_f=u_f, wet=wet, force=force)
     return rho_new, h_new, acc, xs, b, fs, fp
 
@@ -474,7 +476,8 @@ def initial_voidage(phys: Physics, state: State):
     n_sph = state.nbrs.idx.shape[0] - fp.idx.shape[0]
     rows = fpi.grain_rows(kernels.get(phys.kernel), f.x, f.h, f.mass / f.rho,
                           state.solid.x[fp.idx], state.nbrs.idx[n_sph:], phys.n_fluid)
-    return fpi.fluid_voidage(rows.w, fp.vol, rows.idx, rows.valid, phys.n_fluid)
+    return fpi.fluid_voidage(rows.w, fp.vol, rows.idx, rows.valid, phys.n_fluid,
+                              phys.voidage)
 
 
 def refresh_rates(phys: Physics, state: State, params: Params) -> State:
@@ -512,7 +515,8 @@ def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
     velocity scale and |a|max = max(|g|, a_max).
 
     With grains in the fluid (fpi) the sound speed in ερ is c0/√ε, so c0/√ε_lo replaces c0,
-    ε_lo = max(EPS_MIN, 1 − n_grain V_p,max W(0)) the least voidage the grains can make; and
+    ε_lo = max(EPS_MIN, 1 − n_grain V_p,max W(0)) the least voidage the grains can make (3D
+    mapped for Physics.voidage 'mapped'); and
     the drag, held over a step, must not relax the slip faster than the step: Δt ≤ 0.5 τ,
     τ = ρ_p/(β/(1−ε)) with Ergun's β at the densest sphere packing (ε 0.26) and slip
     |v|max."""
@@ -527,7 +531,10 @@ def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
     if grains.size:
         r = np.asarray(scene.solid.radius, float)[grains]
         w0 = float(kernels.get(scene.options.get("kernel", "wendland")).w(0.0, h))
-        c = c / math.sqrt(max(fpi.EPS_MIN, 1.0 - grains.size * np.pi * r.max() ** 2 * w0))
+        e_lo = max(fpi.EPS_MIN, 1.0 - grains.size * np.pi * r.max() ** 2 * w0)
+        if scene.options.get("voidage", "area") == "mapped":
+            e_lo = float(fpi.voidage_3d(e_lo))
+        c = c / math.sqrt(e_lo)
         e = float(fpi.voidage_3d(fpi.EPS_MIN))
         d = 2.0 * r
         rho_p = (np.asarray(scene.solid.mass, float)[grains]

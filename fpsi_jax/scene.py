@@ -268,7 +268,7 @@ class NeighborConfig:
 
 BOUNDARY_PRESSURE = ("fixed", "extrapolated")
 BOND_SECTIONS = ("slab", "circular")
-VOIDAGE = ("3d", "2d")
+VOIDAGE = ("area", "mapped")
 FPI_PRESSURE = ("archimedes", "gradient")
 
 
@@ -302,8 +302,9 @@ class Physics:
       fpi, n_grain         fluid–particle coupling of the grains (fpi.py): voidage in the
                            fluid equations (W42–43), pressure force (buoyancy), drag,
                            lubrication
-      voidage              '3d' (2D area fraction mapped to the equivalent 3D packing,
-                           default) or '2d' (the raw area fraction)
+      voidage              what the fluid equations see: 'area' (ε = 1 − Σ V_p W, default)
+                           or 'mapped' (the equivalent 3D packing's; for grain beds); the
+                           drag closure sees the 3D one either way (fpi.py)
       fpi_pressure         the grains' buoyancy: 'archimedes' (ρ_f V_p |g|, default) or
                            'gradient' (−V_p ∇P of the SPH pressure); see fpi.py
       lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)
@@ -333,7 +334,7 @@ class Physics:
     dem_substeps: int = 1
     fpi: bool = False
     n_grain: int = 0
-    voidage: str = "3d"
+    voidage: str = "area"
     fpi_pressure: str = "archimedes"
     lubrication: bool = True
 
@@ -393,7 +394,7 @@ class Physics:
             both = np.intersect1d(scene.solid.grain_indices(), scene.solid.structure_indices())
             if method is not None and both.size:
                 raise ParameterError(f"disc {int(both[0])} is both a grain and structure")
-        if opts.get("voidage", "3d") not in VOIDAGE:
+        if opts.get("voidage", "area") not in VOIDAGE:
             raise ParameterError(f"voidage must be one of {VOIDAGE}, got {opts['voidage']!r}")
         if opts.get("fpi_pressure", "archimedes") not in FPI_PRESSURE:
             raise ParameterError(f"fpi_pressure must be one of {FPI_PRESSURE}, got "

@@ -178,10 +178,10 @@ def test_still_water_beside_a_grain_is_in_balance():
     """Fluid among grains gets mass ε ρ0 Δx² (builder) and the pressure bracket
     (P_i + P_j)/(ε_iρ_i ε_jρ_j): a fluid particle next to a grain of the fluid's density starts
     in balance, and so does the grain (buoyancy = weight)."""
-    scene = _grain_scene(width=0.02, height=0.06, x0=0.01, y0=0.04)
+    scene = _grain_scene(width=0.02, height=0.03, x0=0.01, y0=0.015)
     phys, p, st = _init(scene)
     x, a = np.asarray(st.fluid.x), np.asarray(st.fluid.acc)
-    near = np.linalg.norm(x - [0.01, 0.04], axis=1) < 0.006
+    near = np.linalg.norm(x - [0.01, 0.015], axis=1) < 0.006
     assert near.sum() > 20 and float(np.asarray(st.fpi.eps).min()) < 0.75   # a real well
     assert np.abs(a[near]).max() < 0.02 * 9.81
     weight = float(scene.solid.mass[0]) * 9.81

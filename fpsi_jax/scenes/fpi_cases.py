@@ -25,10 +25,10 @@ def _check_choice(name, value, allowed):
         raise ParameterError(f"{name} must be one of {allowed}, got {value!r}")
 
 
-def _fluid_among_grains(fluid, x_grain, r_grain):
+def _fluid_among_grains(fluid, x_grain, r_grain, voidage):
     """Scale the masses of the fluid particles by the voidage the grains leave them."""
     eps = np.asarray(fpi.voidage_at(kernels.get("wendland"), fluid.x, fluid.h, x_grain,
-                                    np.pi * np.asarray(r_grain) ** 2), float)
+                                    np.pi * np.asarray(r_grain) ** 2, voidage), float)
     fluid.mass = fluid.mass * eps
     return fluid
 
@@ -57,7 +57,7 @@ def _merge(*blocks: SolidBlock) -> SolidBlock:
 def sedimentation(*, width=0.02, height=0.06, d=0.0025, rho_grain=1250.0, rho_fluid=1000.0,
                   mu=0.01, x0=0.01, y0=0.04, dx=0.0015, dx_boundary=0.00125, h0=0.003,
                   c0=None, kn=1.0e4, friction=0.3, beta_n=0.5,
-                  voidage="3d", r_clump=0.01, eps_xsph=0.5, delta=0.1, x64=False,
+                  voidage="area", r_clump=0.01, eps_xsph=0.5, delta=0.1, x64=False,
                   t_end=1.0) -> Scene:
     """One grain (disc d = 2.5 mm, ρ 1250) released at rest at (``x0``, ``y0``) = (0.01,
     0.04) m in a ``width`` × ``height`` = 0.02 × 0.06 m box of fluid (ρ 1000, μ 0.01 Pa·s);
@@ -84,7 +84,7 @@ def sedimentation(*, width=0.02, height=0.06, d=0.0025, rho_grain=1250.0, rho_fl
     grain = disc_block(np.array([[x0, y0]]), d / 2, rho_grain)
     grain.grain = np.array([True])
     grain.structure = np.array([False])
-    fluid = _fluid_among_grains(fluid, grain.x, grain.radius)
+    fluid = _fluid_among_grains(fluid, grain.x, grain.radius, voidage)
     layers = boundary_layers(h0, dx_boundary)
     boundary = boundary_block(tank_walls(width, height, dx_boundary, layers), rho_fluid,
                               dx_boundary, h0)
@@ -118,7 +118,7 @@ def grain_bed(a, d, n, floor=0.0):
 
 def _two_phase_parts(a, water_height, tank_length, tank_height, d, rho_grain, grain_mass,
                      depth, dx, dx_boundary, h0, mu, c0, kn, ks, friction, beta_n,
-                     voidage, r_clump, eps_xsph, alpha_av):
+                     voidage, r_clump, eps_xsph, alpha_av, delta):
     check_positive(a=a, water_height=water_height, tank_length=tank_length,
                    tank_height=tank_height, d=d, rho_grain=rho_grain, grain_mass=grain_mass,
                    depth=depth, dx=dx, dx_boundary=dx_boundary, h0=h0, kn=kn)
@@ -134,11 +134,11 @@ def _two_phase_parts(a, water_height, tank_length, tank_height, d, rho_grain, gr
     v_max = float(np.sqrt(2 * G * water_height))
     c0 = 10.0 * v_max if c0 is None else c0
     dx = _fit(a, dx)
-    sp = sph_params(1000.0, c0, mu, dx, r_clump, eps_xsph, 0.0, alpha=alpha_av)
+    sp = sph_params(1000.0, c0, mu, dx, r_clump, eps_xsph, delta, alpha=alpha_av)
     surface = round(water_height / dx) * dx
     fluid = hydrostatic_fluid(lattice(0.0, 0.0, a, water_height, dx), 1000.0, c0, sp.gamma,
                               surface, dx=dx, h=h0)
-    fluid = _fluid_among_grains(fluid, grains.x, grains.radius)
+    fluid = _fluid_among_grains(fluid, grains.x, grains.radius, voidage)
     layers = boundary_layers(h0, dx_boundary)
     boundary = boundary_block(tank_walls(tank_length, tank_height, dx_boundary, layers),
                               1000.0, dx_boundary, h0)
@@ -150,8 +150,8 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
                         d=0.0024, rho_grain=2500.0, grain_mass=0.2, depth=0.1, dx=0.0024,
                         dx_boundary=0.0015, h0=0.003, gate_speed=0.68, gate_columns=4,
                         mu=1.0e-3, c0=None, kn=1.021e9, ks=1.024e7, friction=0.3,
-                        beta_n=0.3, voidage="3d", r_clump=0.01,
-                        eps_xsph=0.5, alpha_av=0.02, t_end=0.2) -> Scene:
+                        beta_n=0.3, voidage="mapped", r_clump=0.01,
+                        eps_xsph=0.5, alpha_av=0.02, delta=0.1, t_end=0.2) -> Scene:
     """W6.2.2 after Sun, Sakai & Yamada (2013): a water column ``a`` = 0.05 m wide with a bed
     of grains (d 2.4 mm, ρ 2500) at its foot, behind a gate lifted at ``gate_speed`` =
     0.68 m/s from t = 0; W's numerical parameters (fluid 2.4 mm, fitted to the column:
@@ -173,7 +173,7 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
     sp, fluid, grains, boundary, dem, v_max, c0, layers, n_grain = _two_phase_parts(
         a, water_height, tank_length, tank_height, d, rho_grain, grain_mass, depth, dx,
         dx_boundary, h0, mu, c0, kn, ks, friction, beta_n, voidage, r_clump, eps_xsph,
-        alpha_av)
+        alpha_av, delta)
     dg = dx_boundary
     xgate = square_packing(a, 0.0, gate_columns * dg, water_height + 4 * dg, dg)
     gate = disc_block(xgate, dg / 2, 1000.0, mass_model="lattice", packing="square",
@@ -191,7 +191,8 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
         v_max=v_max, fluid=fluid, boundary=boundary, solid=solid,
         walls=box_walls(0.0, 0.0, tank_length, tank_height), t_end=t_end,
         options={"fpi": True, "fsi": "extrapolated", "voidage": voidage,
-                 "boundary_pressure": "extrapolated", "artificial_viscosity": True},
+                 "boundary_pressure": "extrapolated", "artificial_viscosity": True,
+                 "delta_sph": True},
         builder_kwargs=dict(a=a, water_height=water_height, tank_length=tank_length,
                             tank_height=tank_height, d=d, rho_grain=rho_grain,
                             grain_mass=grain_mass, depth=depth, dx=dx,
@@ -199,7 +200,7 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
                             gate_columns=gate_columns, mu=mu, c0=c0, kn=kn, ks=ks,
                             friction=friction, beta_n=beta_n,
                             voidage=voidage, r_clump=r_clump, eps_xsph=eps_xsph,
-                            alpha_av=alpha_av, t_end=t_end, n_grain=n_grain))
+                            alpha_av=alpha_av, delta=delta, t_end=t_end, n_grain=n_grain))
 
 
 # --- three phases with a breaking structure ----------------------------------------------------
@@ -210,8 +211,8 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
                  rho_structure=1100.0, a=0.05, water_height=0.1, tank_length=0.2,
                  tank_height=0.15, d=0.0024, rho_grain=2500.0, grain_mass=0.2, depth=0.1,
                  dx=0.0024, dx_boundary=0.0015, h0=0.003, mu=1.0e-3, c0=None, kn=1.021e9,
-                 ks=1.024e7, friction=0.3, beta_n=0.3, voidage="3d",
-                 r_clump=0.01, eps_xsph=0.5, alpha_av=0.02, t_end=0.2) -> Scene:
+                 ks=1.024e7, friction=0.3, beta_n=0.3, voidage="mapped",
+                 r_clump=0.01, eps_xsph=0.5, alpha_av=0.02, delta=0.1, t_end=0.2) -> Scene:
     """W6.3: the two-phase dam break with the gate replaced by a bonded structure fixed at
     its foot (ρ 1100), bond tensile strength 4e4 Pa (``case`` 'I') or 2e4 Pa ('II'),
     contact stiffness k_n 1.021e9, k_s 1.024e7 N/m (grains and structure alike).
@@ -232,7 +233,7 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
     sp, fluid, grains, boundary, dem, v_max, c0, layers, n_grain = _two_phase_parts(
         a, water_height, tank_length, tank_height, d, rho_grain, grain_mass, depth, dx,
         dx_boundary, h0, mu, c0, kn, ks, friction, beta_n, voidage, r_clump, eps_xsph,
-        alpha_av)
+        alpha_av, delta)
     ds = d_structure
     xs = square_packing(a, 0.0, thickness, water_height, ds)
     wall = disc_block(xs, ds / 2, rho_structure, mass_model="lattice", packing="square",
@@ -251,7 +252,8 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
         v_max=v_max, fluid=fluid, boundary=boundary, solid=solid, bonds=bonds,
         walls=box_walls(0.0, 0.0, tank_length, tank_height), t_end=t_end,
         options={"fpi": True, "fsi": "extrapolated", "voidage": voidage,
-                 "boundary_pressure": "extrapolated", "artificial_viscosity": True},
+                 "boundary_pressure": "extrapolated", "artificial_viscosity": True,
+                 "delta_sph": True},
         builder_kwargs=dict(case=case, sigma_c=sigma_c, tau_c=tau_c, thickness=thickness,
                             d_structure=d_structure, rho_structure=rho_structure, a=a,
                             water_height=water_height, tank_length=tank_length,
@@ -260,4 +262,4 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
                             dx_boundary=dx_boundary, h0=h0, mu=mu, c0=c0, kn=kn, ks=ks,
                             friction=friction, beta_n=beta_n,
                             voidage=voidage, r_clump=r_clump, eps_xsph=eps_xsph,
-                            alpha_av=alpha_av, t_end=t_end, n_grain=n_grain))
+                            alpha_av=alpha_av, delta=delta, t_end=t_end, n_grain=n_grain))
