@@ -115,7 +115,9 @@ def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nb
     if fp is not None:
         with jax.named_scope("fpi.voidage"):
             rows = fpi.grain_rows(kern, x, h, mass / rho_c_new, xp_, idx_g, nf)
-            eps = fpi.fluid_voidage(rows.w, fp.vol, rows.idx, rows.valid, nf, phys.voidage)
+            eps_raw = fpi.fluid_voidage(rows.w, fp.vol, rows.idx, rows.valid, nf,
+                                        phys.voidage)
+            eps = jnp.maximum(eps_raw, phys.eps_floor)
         rho_new = rho_c_new / eps
     else:
         rho_new = rho_c_new
@@ -151,7 +153,7 @@ def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nb
             fs = fs.replace(force=fsi.reaction(pair, mass, pr.idx, nf + nb, phys.n_structure))
     if fp is not None:
         with jax.named_scope("fpi.drag"):
-            eps_p, u_f, wet, drag = fpi.grain_drag(rows, eps, v, vp_, fp.vol, fp.d, sp.rho0,
+            eps_p, u_f, wet, drag = fpi.grain_drag(rows, eps_raw, v, vp_, fp.vol, fp.d, sp.rho0,
                                                    sp.mu, phys.voidage)
         with jax.named_scope("fpi.buoyancy"):
             if phys.fpi_pressure == "archimedes":
@@ -476,8 +478,8 @@ def initial_voidage(phys: Physics, state: State):
     n_sph = state.nbrs.idx.shape[0] - fp.idx.shape[0]
     rows = fpi.grain_rows(kernels.get(phys.kernel), f.x, f.h, f.mass / f.rho,
                           state.solid.x[fp.idx], state.nbrs.idx[n_sph:], phys.n_fluid)
-    return fpi.fluid_voidage(rows.w, fp.vol, rows.idx, rows.valid, phys.n_fluid,
-                              phys.voidage)
+    return jnp.maximum(fpi.fluid_voidage(rows.w, fp.vol, rows.idx, rows.valid, phys.n_fluid,
+                                         phys.voidage), phys.eps_floor)
 
 
 def refresh_rates(phys: Physics, state: State, params: Params) -> State:
@@ -534,6 +536,7 @@ def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
         e_lo = max(fpi.EPS_MIN, 1.0 - grains.size * np.pi * r.max() ** 2 * w0)
         if scene.options.get("voidage", "area") == "mapped":
             e_lo = float(fpi.voidage_3d(e_lo))
+        e_lo = max(e_lo, float(scene.options.get("eps_floor", 0.0)))
         c = c / math.sqrt(e_lo)
         e = float(fpi.voidage_3d(fpi.EPS_MIN))
         d = 2.0 * r

@@ -305,6 +305,8 @@ class Physics:
       voidage              what the fluid equations see: 'area' (ε = 1 − Σ V_p W, default)
                            or 'mapped' (the equivalent 3D packing's; for grain beds); the
                            drag closure sees the 3D one either way (fpi.py)
+      eps_floor            the fluid equations see max(ε, eps_floor) (the drag the true ε);
+                           builders of packed beds raise it (fpi_cases.py)
       fpi_pressure         the grains' buoyancy: 'archimedes' (ρ_f V_p |g|, default) or
                            'gradient' (−V_p ∇P of the SPH pressure); see fpi.py
       lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)
@@ -336,12 +338,13 @@ class Physics:
     n_grain: int = 0
     voidage: str = "area"
     fpi_pressure: str = "archimedes"
+    eps_floor: float = 0.0
     lubrication: bool = True
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
                "artificial_viscosity", "boundary_pressure", "h_margin", "rho_tolerance", "x64", "skin",
                "capacity_multiplier", "bond_section", "dem_skin", "fsi", "dem_substeps", "fpi",
-               "voidage", "lubrication", "fpi_pressure")
+               "voidage", "lubrication", "fpi_pressure", "eps_floor")
 
     @classmethod
     def for_scene(cls, scene: Scene, **overrides) -> "Physics":
@@ -396,6 +399,9 @@ class Physics:
                 raise ParameterError(f"disc {int(both[0])} is both a grain and structure")
         if opts.get("voidage", "area") not in VOIDAGE:
             raise ParameterError(f"voidage must be one of {VOIDAGE}, got {opts['voidage']!r}")
+        floor = opts.get("eps_floor", 0.0)
+        if not (isinstance(floor, (int, float)) and 0.0 <= floor < 1.0):
+            raise ParameterError(f"eps_floor = {floor!r} out of range; allowed [0, 1)")
         if opts.get("fpi_pressure", "archimedes") not in FPI_PRESSURE:
             raise ParameterError(f"fpi_pressure must be one of {FPI_PRESSURE}, got "
                                  f"{opts['fpi_pressure']!r}")
