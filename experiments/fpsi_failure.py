@@ -20,7 +20,7 @@ import numpy as np
 
 from fpsi_jax import io
 from fpsi_jax import overrides as ov
-from fpsi_jax.simulate import simulate
+from fpsi_jax.simulate import setup, simulate
 
 try:
     from two_phase_dam_break import snapshots
@@ -51,6 +51,8 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--cases", nargs="+", default=["I", "II"])
     ap.add_argument("--set", action="append", default=[])
+    ap.add_argument("--dt-factor", type=float, default=1.0,
+                    help="time step as a fraction of the derived bound")
     args = ap.parse_args()
     os.makedirs(OUT, exist_ok=True)
     out, curves = {}, {}
@@ -59,7 +61,8 @@ if __name__ == "__main__":
         b = scene.builder_kwargs
         h5 = os.path.join(tempfile.mkdtemp(), f"fpsi_failure_{case}.h5")
         t0 = time.perf_counter()
-        res = simulate(scene, output=h5, every=0.01, progress=False, **phys)
+        dt = args.dt_factor * float(setup(scene, **phys)[1].dt)
+        res = simulate(scene, output=h5, every=0.01, progress=False, dt=dt, **phys)
         wall = time.perf_counter() - t0
         run = io.read(h5)
         tb = np.asarray(run.breaks.get("time", []))
@@ -71,6 +74,7 @@ if __name__ == "__main__":
                     for k in range(run.frames)]
         curves[case] = np.stack([run.time, [np.sum(tb <= t) for t in run.time], n_pieces], 1)
         out[case] = {"sigma_c": b["sigma_c"], "tau_c": b["tau_c"], "wall_s": wall,
+                     "dt_factor": args.dt_factor,
                      "sph_steps": res.n_steps, "dt": float(res.params.dt),
                      "dem_substeps": res.physics.dem_substeps,
                      "particle_steps_per_s": res.particle_steps_per_s,

@@ -21,7 +21,7 @@ import numpy as np
 
 from fpsi_jax import io
 from fpsi_jax import overrides as ov
-from fpsi_jax.simulate import simulate
+from fpsi_jax.simulate import setup, simulate
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 
@@ -60,13 +60,16 @@ def snapshots(run, scene, title, xlim, ylim, extra=None):
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--set", action="append", default=[])
+    ap.add_argument("--dt-factor", type=float, default=1.0,
+                    help="time step as a fraction of the derived bound")
     args = ap.parse_args()
     os.makedirs(OUT, exist_ok=True)
     scene, phys = ov.build("two_phase_dam_break", ov.parse_pairs(args.set))
     b = scene.builder_kwargs
     h5 = os.path.join(tempfile.mkdtemp(), "two_phase_dam_break.h5")
     t0 = time.perf_counter()
-    res = simulate(scene, output=h5, every=0.05, progress=False, observe=fronts, **phys)
+    dt = args.dt_factor * float(setup(scene, **phys)[1].dt)
+    res = simulate(scene, output=h5, every=0.05, progress=False, observe=fronts, dt=dt, **phys)
     wall = time.perf_counter() - t0
     a, g = b["a"], 9.81
     xf, xg = (np.asarray(o, float) for o in res.observations)
@@ -78,6 +81,7 @@ if __name__ == "__main__":
     marks = [0.05, 0.1, 0.15, 0.2]
     at = lambda arr, tm: float(np.interp(tm, t, arr))
     info = {"wall_s": wall, "sph_steps": res.n_steps, "dt": float(res.params.dt),
+            "dt_factor": args.dt_factor,
             "dem_substeps": res.physics.dem_substeps, "n_fluid": scene.fluid.n,
             "n_boundary": scene.boundary.n, "n_grains": int(b["n_grain"]),
             "n_discs": scene.solid.n, "particle_steps_per_s": res.particle_steps_per_s,

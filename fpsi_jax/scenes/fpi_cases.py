@@ -152,7 +152,7 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
                         dx_boundary=0.0015, h0=0.003, gate_speed=0.68, gate_columns=4,
                         mu=1.0e-3, c0=None, kn=1.021e9, ks=1.024e7, friction=0.3,
                         beta_n=0.3, voidage="mapped", r_clump=0.01,
-                        eps_xsph=0.5, alpha_av=0.02, delta=0.1, eps_floor=0.5,
+                        eps_xsph=0.5, alpha_av=0.02, delta=0.1, eps_floor=0.8,
                         t_end=0.2) -> Scene:
     """W6.2.2 after Sun, Sakai & Yamada (2013): a water column ``a`` = 0.05 m wide with a bed
     of grains (d 2.4 mm, ρ 2500) at its foot, behind a gate lifted at ``gate_speed`` =
@@ -173,10 +173,11 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
     density) and α = 0.02 artificial viscosity as in the dam break.
 
     The packed bed: the fluid sees the 3D-mapped voidage (``voidage`` 'mapped', 0.26-0.3 in
-    the bed), floored at ``eps_floor`` = 0.5 in the fluid equations (the drag sees the
-    unfloored value). Without the floor the light pore fluid near the left wall went unstable
-    within 0.02 s (unresolved; README). The floor makes the bed's pore fluid heavier than
-    the pores hold, so the bed's pressure gradient is steeper than hydrostatic."""
+    the bed), floored at ``eps_floor`` = 0.8 in the fluid equations (the drag sees the
+    unfloored value). The light pore fluid near the left wall went unstable within 0.02 s
+    without the floor, and by 0.035–0.11 s with a floor of 0.5 (unresolved; README). The
+    floor makes the bed's pore fluid heavier than the pores hold, so the bed's pressure
+    gradient is steeper than hydrostatic."""
     check_positive(gate_speed=gate_speed, gate_columns=gate_columns)
     sp, fluid, grains, boundary, dem, v_max, c0, layers, n_grain = _two_phase_parts(
         a, water_height, tank_length, tank_height, d, rho_grain, grain_mass, depth, dx,
@@ -221,7 +222,7 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
                  tank_height=0.15, d=0.0024, rho_grain=2500.0, grain_mass=0.2, depth=0.1,
                  dx=0.0024, dx_boundary=0.0015, h0=0.003, mu=1.0e-3, c0=None, kn=1.021e9,
                  ks=1.024e7, friction=0.3, beta_n=0.3, voidage="mapped",
-                 r_clump=0.01, eps_xsph=0.5, alpha_av=0.02, delta=0.1, eps_floor=0.5,
+                 r_clump=0.01, eps_xsph=0.5, alpha_av=0.02, delta=0.1, eps_floor=0.8,
                         t_end=0.2) -> Scene:
     """W6.3: the two-phase dam break with the gate replaced by a bonded structure fixed at
     its foot (ρ 1100), bond tensile strength 4e4 Pa (``case`` 'I') or 2e4 Pa ('II'),
@@ -233,7 +234,8 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
     stiffness / bond area (k̄ = k/d for the 2R̄·1 m slab), shear strength τ̄_c = σ̄_c. Static
     bending at the foot under the water alone is 6M/e² with M = ρ_w g H³/6: 9.8e4 Pa for
     the defaults, above both strengths, so both walls crack from the foot once the load
-    arrives; the weaker one earlier and further."""
+    arrives; the weaker one earlier and further. The bed's fluid voidage is floored at
+    ``eps_floor`` = 0.8 as in :func:`two_phase_dam_break`."""
     if case not in FPSI_CASES and sigma_c is None:
         raise ParameterError(f"case must be one of {tuple(FPSI_CASES)}, got {case!r}")
     sigma_c = FPSI_CASES[case] if sigma_c is None else sigma_c
