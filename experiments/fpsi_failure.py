@@ -4,7 +4,7 @@
     python experiments/fpsi_failure.py [--cases I II] [--set key=value ...]
 
 Writes experiments/results/fpsi_failure.json (first failure, broken bonds, pieces, run
-time per case), fpsi_failure_breaks.csv (broken bonds vs time, both cases) and
+time per case), fpsi_failure_breaks_<case>.csv (broken bonds and pieces vs time) and
 fpsi_failure_<case>.png (snapshots at 0, 0.05, ..., 0.2 s with the intact bonds).
 A "piece" is a connected set of structure discs joined by intact bonds (single discs count).
 """
@@ -94,7 +94,8 @@ if __name__ == "__main__":
             ax.add_collection(LineCollection(np.stack([xs[i[ok]], xs[j[ok]]], 1), colors="k",
                                              linewidths=0.3))
 
-        keep = [k for k, t in enumerate(run.time) if abs(t / 0.05 - round(t / 0.05)) < 1e-6]
+        keep = sorted({int(np.argmin(np.abs(run.time - m))) for m in np.arange(0.0, 0.201, 0.05)
+                       if m <= run.time[-1] + 1e-6})
         sub = io.Run(**{**run.__dict__, "time": run.time[keep],
                         "fluid": {k: v[keep] for k, v in run.fluid.items()},
                         "solid": {k: (v[keep] if v.ndim > 1 else v) for k, v in run.solid.items()},
@@ -105,10 +106,9 @@ if __name__ == "__main__":
         for ax, k in zip(fig.axes, range(sub.frames)):
             bonds_on(ax, sub, k)
         fig.savefig(os.path.join(OUT, f"fpsi_failure_{case}.png"), dpi=110)
-    with open(os.path.join(OUT, "fpsi_failure.json"), "w") as fh:
-        json.dump(out, fh, indent=1)
-    t = next(iter(curves.values()))[:, 0]
-    cols = [t] + [c[:, 1] for c in curves.values()] + [c[:, 2] for c in curves.values()]
-    np.savetxt(os.path.join(OUT, "fpsi_failure_breaks.csv"), np.stack(cols, 1), delimiter=",",
-               header="t_s," + ",".join(f"broken_{c}" for c in curves) + ","
-               + ",".join(f"pieces_{c}" for c in curves), comments="", fmt="%.4g")
+        path = os.path.join(OUT, "fpsi_failure.json")
+        old = json.load(open(path)) if os.path.exists(path) else {}
+        with open(path, "w") as fh:
+            json.dump({**old, case: out[case]}, fh, indent=1)
+        np.savetxt(os.path.join(OUT, f"fpsi_failure_breaks_{case}.csv"), curves[case],
+                   delimiter=",", header="t_s,broken,pieces", comments="", fmt="%.4g")

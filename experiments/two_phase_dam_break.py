@@ -41,6 +41,7 @@ def snapshots(run, scene, title, xlim, ylim, extra=None):
     T = run.time
     cols = len(T) + (1 if extra else 0)
     fig, axes = plt.subplots(1, cols, figsize=(3.3 * cols, 3.2))
+    axes = np.atleast_1d(axes)
     for ax, k in zip(axes, range(len(T))):
         xf = run.fluid["x"][k]
         ax.scatter(xf[:, 0], xf[:, 1], s=0.6, c="tab:blue", lw=0)
@@ -94,6 +95,10 @@ if __name__ == "__main__":
     with open(os.path.join(OUT, "two_phase_dam_break.json"), "w") as fh:
         json.dump(info, fh, indent=1)
     run = io.read(h5)
+    keep = sorted(set(np.unique(np.round(run.time, 6), return_index=True)[1]))
+    run = io.Run(**{**run.__dict__, "time": run.time[keep],
+                    "fluid": {k: v[keep] for k, v in run.fluid.items()},
+                    "solid": {k: (v[keep] if v.ndim > 1 else v) for k, v in run.solid.items()}})
     fig, axes = snapshots(run, scene, "Two-phase dam break (W6.2.2): water, grains "
                           "(brown), lifting gate (orange)", (-0.005, b["tank_length"] + 0.005),
                           (-0.005, 0.12))
