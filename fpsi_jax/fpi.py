@@ -121,11 +121,13 @@ def lubrication(x_ij, v_ij, d_mean, mu, gap_min, cutoff):
     return jnp.where((r - d_mean <= cutoff)[..., None], coef[..., None] * x_ij, 0.0)
 
 
-def reaction_weights(w, vol, valid):
-    """Kernel weights normalised per grain, w_k V_k / Σ w V (W47–48): the fluid neighbours'
-    shares of the grain's force, summing to exactly 1 (0 for a grain without fluid)."""
+def reaction_weights(w, vol, valid, wall=None):
+    """Kernel weights normalised per grain, w_k V_k / (Σ w V + wall) (W47–W48): the fluid
+    neighbours' shares of the grain's force. Without ``wall`` they sum to exactly 1 (0 for a
+    grain without fluid); ``wall`` (n_g,) is the boundary particles' part of the support
+    (:func:`wall_share`), which takes the rest."""
     wv = jnp.where(valid, w * vol, 0.0)
-    den = jnp.sum(wv, axis=1, keepdims=True)
+    den = jnp.sum(wv, axis=1, keepdims=True) + (0.0 if wall is None else wall[:, None])
     return wv / jnp.where(den > 0, den, 1.0)
 
 
@@ -227,9 +229,7 @@ def reaction_acceleration(rows: GrainRows, force_p, m_f, wall=None):
     (W48's Shepard normalisation) the few fluid particles between a grain and the floor
     took the whole buoyancy: in a grain bed they were driven through the floor at
     250 m/s². Away from walls the shares sum to one and Σ reaction = −Σ F_p exactly."""
-    wv = jnp.where(rows.valid, rows.w * rows.vol, 0.0)
-    den = jnp.sum(wv, axis=1, keepdims=True) + (0.0 if wall is None else wall[:, None])
-    w = wv / jnp.where(den > 0, den, 1.0)
+    w = reaction_weights(rows.w, rows.vol, rows.valid, wall)
     return reaction_on_fluid(force_p, w, rows.idx, m_f.shape[0]) / m_f[:, None]
 
 

@@ -75,7 +75,7 @@ def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nb
     the returned FsiState then carries the fluid's force on them (and, for the pressure
     approximation, their new P_S and ρ_S).
 
-    ``grains`` = (x_p, v_p, FpiState) couples the grains (fpi.py). The conserved density is
+    ``grains`` = (x_p, v_p, R_p, FpiState) couples the grains (fpi.py). The conserved density is
     then ερ (W42): continuity advances ε_old ρ, the voidage ε at the new positions turns it
     back into the intrinsic ρ that the EOS, the viscosity and the walls see, the pressure
     bracket carries ε (``sph.voidage_bracket``), and the grains' drag and buoyancy go back
@@ -86,12 +86,13 @@ def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nb
     b = boundary
     nb = 0 if b is None else b.x.shape[0]
     xs_, vs_, as_, fs = structure if structure is not None else (None, None, None, None)
-    xp_, vp_, fp = grains if grains is not None else (None, None, None)
+    xp_, vp_, rp_, fp = grains if grains is not None else (None, None, None, None)
     n_sph = nf + nb + (0 if fs is None else fs.idx.shape[0])
     idx = nbrs.idx
     if fp is not None:
         idx, idx_g = jnp.minimum(idx[:n_sph], n_sph), idx[n_sph:]  # grains leave the sums
         rho_c = fp.eps * rho
+        vol_p = jnp.pi * rp_ * rp_        # V_p per unit thickness, like the disc's mass
     else:
         rho_c = rho
     opt = lambda blk, k: None if blk is None else getattr(blk, k)
@@ -115,7 +116,7 @@ def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nb
     if fp is not None:
         with jax.named_scope("fpi.voidage"):
             rows = fpi.grain_rows(kern, x, h, mass / rho_c_new, xp_, idx_g, nf)
-            eps_raw = fpi.fluid_voidage(rows.w, fp.vol, rows.idx, rows.valid, nf,
+            eps_raw = fpi.fluid_voidage(rows.w, vol_p, rows.idx, rows.valid, nf,
                                         phys.voidage)
             eps = jnp.maximum(eps_raw, phys.eps_floor)
         rho_new = rho_c_new / eps
@@ -153,13 +154,13 @@ def fluid_update(phys: Physics, params: Params, x, v, rho, h, mass, boundary, nb
             fs = fs.replace(force=fsi.reaction(pair, mass, pr.idx, nf + nb, phys.n_structure))
     if fp is not None:
         with jax.named_scope("fpi.drag"):
-            eps_p, u_f, wet, drag = fpi.grain_drag(rows, eps_raw, v, vp_, fp.vol, fp.d, sp.rho0,
+            eps_p, u_f, wet, drag = fpi.grain_drag(rows, eps_raw, v, vp_, vol_p, 2.0 * rp_, sp.rho0,
                                                    sp.mu, phys.voidage)
         with jax.named_scope("fpi.buoyancy"):
             if phys.fpi_pressure == "archimedes":
-                lift = -(sp.rho0 * fp.vol)[:, None] * g[None, :]
+                lift = -(sp.rho0 * vol_p)[:, None] * g[None, :]
             else:
-                lift = fpi.pressure_force(rows, p_new, fp.vol)
+                lift = fpi.pressure_force(rows, p_new, vol_p)
             force = drag + jnp.where((wet > 0)[:, None], lift, 0.0)
         with jax.named_scope("fpi.reaction"):
             wall = None if b is None else fpi.wall_share(kern, b.x, b.h, b.mass / b.rho, xp_,
@@ -247,11 +248,11 @@ def structure_particles(phys: Physics, state: State):
 
 
 def grain_particles(phys: Physics, state: State):
-    """(x_p, v_p, FpiState) of the grains coupled to the fluid, or None."""
+    """(x_p, v_p, R_p, FpiState) of the grains coupled to the fluid, or None."""
     if not phys.has_fpi:
         return None
     k = state.fpi.idx
-    return state.solid.x[k], state.solid.v[k], state.fpi
+    return state.solid.x[k], state.solid.v[k], state.solid.radius[k], state.fpi
 
 
 def fluid_force_on_discs(phys: Physics, state: State):
@@ -434,11 +435,9 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
                 p=a(np.zeros(ns)), force=a(np.zeros((ns, 2))))
         if phys.has_fpi:
             k = scene.solid.grain_indices()
-            r = np.asarray(scene.solid.radius, float)[k]
             ng = k.size
             fpi_state = FpiState(
-                idx=jnp.asarray(k, jnp.int32), vol=a(np.pi * r * r), d=a(2.0 * r),
-                eps=a(np.ones(fl.n)), eps_p=a(np.ones(ng)), u_f=a(np.zeros((ng, 2))),
+                idx=jnp.asarray(k, jnp.int32), eps=a(np.ones(fl.n)), eps_p=a(np.ones(ng)), u_f=a(np.zeros((ng, 2))),
                 wet=a(np.zeros(ng)), force=a(np.zeros((ng, 2))))
     if scene.solid is not None:
         so = scene.solid
@@ -478,8 +477,10 @@ def initial_voidage(phys: Physics, state: State):
     n_sph = state.nbrs.idx.shape[0] - fp.idx.shape[0]
     rows = fpi.grain_rows(kernels.get(phys.kernel), f.x, f.h, f.mass / f.rho,
                           state.solid.x[fp.idx], state.nbrs.idx[n_sph:], phys.n_fluid)
-    return jnp.maximum(fpi.fluid_voidage(rows.w, fp.vol, rows.idx, rows.valid, phys.n_fluid,
-                                         phys.voidage), phys.eps_floor)
+    r = state.solid.radius[fp.idx]
+    eps = fpi.fluid_voidage(rows.w, jnp.pi * r * r, rows.idx, rows.valid, phys.n_fluid,
+                            phys.voidage)
+    return jnp.maximum(eps, phys.eps_floor)
 
 
 def refresh_rates(phys: Physics, state: State, params: Params) -> State:

@@ -100,15 +100,13 @@ class FsiState:
 
 @pytree_dataclass
 class FpiState:
-    """Grains in the fluid (``fpi.py``): which discs (``idx`` into the solid arrays), their
-    volume V_p and diameter d, the fluid voidage ε of every fluid particle (W2, what the
+    """Grains in the fluid (``fpi.py``): which discs (``idx`` into the solid arrays; their
+    volume πR² and diameter 2R come from the disc radius), the fluid voidage ε of every fluid particle (W2, what the
     fluid equations W42–W43 use), and at the last SPH evaluation each grain's voidage ε_p
     (W18), Shepard fluid velocity ū_f (W21), wetness Σ_f V_f W_pf (0: dry) and ``force``,
     the fluid's force, pressure (buoyancy) + drag (W19), which the DEM sub-steps hold."""
 
     idx: Any
-    vol: Any
-    d: Any
     eps: Any
     eps_p: Any
     u_f: Any
