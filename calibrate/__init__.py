@@ -1,0 +1,11 @@
+"""fpsi-jax calibration: fit Params to reference data with gradients through rollouts.
+
+    from calibrate import cases, fit
+    case = cases.cantilever_synthetic()
+    res = fit.fit(case.calibration, max_steps=100)
+
+Modules: ``space`` (which parameters, transformed space), ``targets`` (reference data →
+residuals), ``rollout`` (checkpointed differentiable rollouts), ``fit`` (optax loop,
+Gauss–Newton errors, JSON, plot), ``batch`` (vmapped and sharded parameter sweeps),
+``cases`` (ready-made problems), ``cli`` (``fpsi calibrate``).
+"""

@@ -127,6 +127,12 @@ def local_damping(alpha, force, velocity):
     return force - alpha * jnp.abs(force) * jnp.sign(velocity)
 
 
+def viscous_damping(c, mass, velocity):
+    """Mass-proportional viscous damping −c m v (per component; with J and ω for moments).
+    Smooth, unlike K25, so gradients with respect to c and through the motion are exact."""
+    return -c * mass * velocity
+
+
 def load_factor(load_ramp, t):
     """External loads ramp linearly from 0 to 1 over ``load_ramp`` seconds (0: at once)."""
     return jnp.where(load_ramp > 0, jnp.clip(t / jnp.where(load_ramp > 0, load_ramp, 1.0),
@@ -139,4 +145,4 @@ def kinetic_energy(v, omega, mass, inertia):
 
 
 __all__ = ["perp", "reduced_mass", "linear_contact", "disc_contacts", "wall_contacts",
-           "wall_geometry", "remap_history", "local_damping", "load_factor", "kinetic_energy"]
+           "wall_geometry", "remap_history", "local_damping", "viscous_damping", "load_factor", "kinetic_energy"]

@@ -210,6 +210,9 @@ def solid_update(phys: Physics, params: Params, solid: SolidState, x, v, omega, 
     with jax.named_scope("dem.local_damping"):
         force = dem.local_damping(dp.alpha, force, v)
         torque = dem.local_damping(dp.alpha, torque, omega)
+    with jax.named_scope("dem.viscous_damping"):
+        force = force + dem.viscous_damping(dp.damping, solid.mass[:, None], v)
+        torque = torque + dem.viscous_damping(dp.damping, solid.inertia, omega)
     free = ~solid.fixed
     acc = jnp.where(free[:, None], force / solid.mass[:, None], 0.0)
     alpha = jnp.where(free, torque / solid.inertia, 0.0)
@@ -578,7 +581,11 @@ def dem_dt(scene: Scene, params: Params, section: str = "slab") -> float:
     bound = np.sqrt(m / k)
     if k_rot > 0:
         bound = min(bound, np.sqrt(J / k_rot))
-    return float(DEM_DT_FACTOR * bound)
+    bound = DEM_DT_FACTOR * bound
+    c = float(getattr(dp, "damping", 0.0))
+    if c > 0:                      # the lagged viscous term is stable for c·Δt < 2; keep ≤ 0.5
+        bound = min(bound, 0.5 / c)
+    return float(bound)
 
 
 def stable_dt(scene: Scene, params: Params | None = None, a_max: float | None = None,

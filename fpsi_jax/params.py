@@ -88,6 +88,10 @@ class DemParams:
     beta_n      normal dashpot ratio β_n: F = 2β_n √(m k_n) δ̇ (W15–W17), m the reduced mass
     beta_s      shear dashpot ratio β_s (W16 prints β_n there: a typo)
     alpha       local damping α (K25): F_d = −α |F| sign(v) per component, moments too
+    damping     mass-proportional viscous damping rate c [1/s]: F_d = −c m v, M_d = −c J ω
+                (not in the seeds: the smooth counterpart of α that calibration can
+                differentiate; a mode of angular frequency ω decays with damping ratio
+                ζ = c/(2ω), so α ≈ πζ of K25 corresponds to c ≈ 2αω/π)
     load_ramp   external loads grow linearly from 0 over this time [s] (0: applied at once)
     """
 
@@ -97,6 +101,7 @@ class DemParams:
     beta_n: Any = 0.0
     beta_s: Any = 0.0
     alpha: Any = 0.0
+    damping: Any = 0.0
     load_ramp: Any = 0.0
 
     def validate(self):
@@ -106,6 +111,7 @@ class DemParams:
         require("dem.beta_n", self.beta_n, 0.0, 1.0, hi_open=True)
         require("dem.beta_s", self.beta_s, 0.0, 1.0, hi_open=True)
         require("dem.alpha", self.alpha, 0.0, 1.0, hi_open=True)
+        require("dem.damping", self.damping, 0.0, None)
         require("dem.load_ramp", self.load_ramp, 0.0, None)
 
 

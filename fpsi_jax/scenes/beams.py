@@ -82,7 +82,7 @@ def beam_discs(length, height, d, packing="hex", clamp_columns=3):
 
 def cantilever(*, length=0.079375, height=0.005, d=0.00125, E=10.0e6, nu=0.33, rho=1100.0,
                load=1.0, mapping="k42_split", packing="square", variant="tip", alpha=None,
-               amplitude=0.02, clamp_columns=3, t_end=None) -> Scene:
+               damping=0.0, amplitude=0.02, clamp_columns=3, t_end=None) -> Scene:
     """K6.3.3's rubber strip: ``length`` × ``height`` (5 mm × 79.375 mm), E = 10 MPa, discs
     d = 1.25 mm, clamped at x = 0, per unit width (t = 1 m), no gravity.
 
@@ -99,6 +99,8 @@ def cantilever(*, length=0.079375, height=0.005, d=0.00125, E=10.0e6, nu=0.33, r
     packing         'square' (default: 4 rows of d = 1.25 mm fill the 5 mm exactly, and a
                     bond of section 2R̄t between discs 2R apart is then an exact bar, so K42
                     gives the continuum EI) or 'hex' (4 rows fit, representing 4.33 mm)
+    damping         mass-proportional viscous damping rate c [1/s] (DemParams.damping): the
+                    first mode decays with damping ratio ζ1 = c/(4π f1)
     The clamp is the discs with x ≤ 0; with the square packing the last clamped column sits at
     −d/2, so the as-built span from it to the loaded tip column is L + d/2 (80 mm).
     Disc masses: the packing's cell area (mass per area exactly ρ; physics.md allows it).
@@ -134,13 +136,14 @@ def cantilever(*, length=0.079375, height=0.005, d=0.00125, E=10.0e6, nu=0.33, r
     return Scene(
         name="cantilever",
         params=Params(gravity=(0.0, 0.0),
-                      dem=DemParams(kn=k["kn"], ks=k["ks"], mu=0.0, alpha=alpha),
+                      dem=DemParams(kn=k["kn"], ks=k["ks"], mu=0.0, alpha=alpha,
+                                    damping=damping),
                       bond=BondParams(kn=k["bond_kn"], ks=k["bond_ks"])),
         domain_lo=(-clamp_columns * d - pad, -pad), domain_hi=(length + pad, pad), v_max=1.0,
         solid=blk, bonds=bonds, t_end=t_end, options={"x64": True},
         builder_kwargs=dict(length=length, height=height, d=d, E=E, nu=nu, rho=rho, load=load,
                             mapping=mapping, packing=packing, variant=variant, alpha=alpha,
-                            amplitude=amplitude, clamp_columns=clamp_columns, t_end=t_end))
+                            damping=damping, amplitude=amplitude, clamp_columns=clamp_columns, t_end=t_end))
 
 
 def mode_shape(s):

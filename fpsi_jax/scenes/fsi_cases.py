@@ -75,7 +75,7 @@ def plate_reference(builder_kwargs, g=G):
 def hydrostatic_plate(*, span=0.07875, thickness=0.005, water_height=0.1575005, E=10.0e6,
                       nu=0.4, rho_plate=1100.0, rho_water=1000.0, dx=0.00175, d=0.00125,
                       dx_boundary=0.00125, h0=None, mu=8.9e-4, c0=None,
-                      coupling="extrapolated", alpha=0.7, plane_strain=True,
+                      coupling="extrapolated", alpha=0.7, damping=0.0, plane_strain=True,
                       shear_factor=1.0, clamp_columns=3, r_clump=0.01, eps_xsph=0.5,
                       delta=0.1, alpha_av=0.02, t_end=0.5) -> Scene:
     """K6.3.3: a 5 mm plate of span 0.07875 m clamped at both ends under 0.1575005 m of still
@@ -140,7 +140,8 @@ def hydrostatic_plate(*, span=0.07875, thickness=0.005, water_height=0.1575005, 
     pad = t + clamp_columns * d + 2 * h
     return Scene(
         name="hydrostatic_plate",
-        params=Params(sph=sp, dem=DemParams(kn=k["kn"], ks=k["ks"], mu=0.0, alpha=alpha),
+        params=Params(sph=sp, dem=DemParams(kn=k["kn"], ks=k["ks"], mu=0.0, alpha=alpha,
+                                                damping=damping),
                       bond=bp),
         domain_lo=(-pad, -thickness - pad), domain_hi=(L + pad, top + pad), v_max=v_max,
         fluid=fluid, boundary=boundary, solid=blk, bonds=bonds, t_end=t_end,
@@ -149,7 +150,7 @@ def hydrostatic_plate(*, span=0.07875, thickness=0.005, water_height=0.1575005, 
         builder_kwargs=dict(span=span, thickness=thickness, water_height=water_height, E=E,
                             nu=nu, rho_plate=rho_plate, rho_water=rho_water, dx=dx, d=d,
                             dx_boundary=dx_boundary, h0=h, mu=mu, c0=c0, coupling=coupling,
-                            alpha=alpha, plane_strain=plane_strain,
+                            alpha=alpha, damping=damping, plane_strain=plane_strain,
                             shear_factor=shear_factor, clamp_columns=clamp_columns, r_clump=r_clump, eps_xsph=eps_xsph,
                             delta=delta, alpha_av=alpha_av, t_end=t_end, span_built=L,
                             thickness_built=n_rows * d,
@@ -182,7 +183,7 @@ def gate_discs(x_face, gap, length, thickness, d, clamp_rows):
 def elastic_gate(*, water_width=0.1, water_height=0.14, gate_length=0.079,
                  gate_thickness=0.005, gap=0.0, E=10.0e6, nu=0.4, rho_gate=1100.0,
                  rho_water=1000.0, dx=0.00175, d=0.00125, dx_boundary=0.00125, h0=0.0021875,
-                 mu=8.9e-4, c0=None, coupling="extrapolated", alpha=0.0,
+                 mu=8.9e-4, c0=None, coupling="extrapolated", alpha=0.0, damping=0.0,
                  plane_strain=True, shear_factor=1.0, tank_length=0.5, tank_height=0.16, clamp_rows=3,
                  sigma_c=1.0e30, tau_c=1.0e30, r_clump=0.01, eps_xsph=0.5, delta=0.1,
                  alpha_av=0.02, t_end=0.4) -> Scene:
@@ -202,7 +203,9 @@ def elastic_gate(*, water_width=0.1, water_height=0.14, gate_length=0.079,
     see fsi.py; K's three are options, compared in experiments/elastic_gate.py); the gate
     fully clamped (K's 'semi-rigid' clamp is not modelled); gap 0 between the gate's tip
     and the floor (the experiment's gate closes the tank; C uses a 2.5 mm model gap).
-    c0 = 10 √(2 g H). δ-SPH and α = 0.02 artificial viscosity as in the dam break.
+    No viscous damping by default either (``damping`` = c of DemParams.damping, the
+    smooth damping that calibration fits). c0 = 10 √(2 g H). δ-SPH and α = 0.02
+    artificial viscosity as in the dam break.
     Tank: floor from x = 0 to ``tank_length`` with walls at both ends ``tank_height``
     high (SPH boundary particles for the water, DEM line walls for the discs: the two never
     interact, so without the DEM walls a broken-off gate falls through the floor); a rigid
@@ -248,7 +251,8 @@ def elastic_gate(*, water_width=0.1, water_height=0.14, gate_length=0.079,
     pad = layers * dx_boundary + 2 * h0
     return Scene(
         name="elastic_gate",
-        params=Params(sph=sp, dem=DemParams(kn=k["kn"], ks=k["ks"], mu=0.0, alpha=alpha),
+        params=Params(sph=sp, dem=DemParams(kn=k["kn"], ks=k["ks"], mu=0.0, alpha=alpha,
+                                                damping=damping),
                       bond=bp),
         domain_lo=(-pad, -pad), domain_hi=(tank_length + pad, 1.5 * tank_height),
         v_max=v_max, fluid=fluid, boundary=boundary, solid=blk, bonds=bonds,
@@ -259,7 +263,7 @@ def elastic_gate(*, water_width=0.1, water_height=0.14, gate_length=0.079,
                             gate_length=gate_length, gate_thickness=gate_thickness, gap=gap,
                             E=E, nu=nu, rho_gate=rho_gate, rho_water=rho_water, dx=dx, d=d,
                             dx_boundary=dx_boundary, h0=h0, mu=mu, c0=c0, coupling=coupling,
-                            alpha=alpha, plane_strain=plane_strain,
+                            alpha=alpha, damping=damping, plane_strain=plane_strain,
                             shear_factor=shear_factor, tank_length=tank_length,
                             tank_height=tank_height, clamp_rows=clamp_rows, sigma_c=sigma_c,
                             tau_c=tau_c, r_clump=r_clump, eps_xsph=eps_xsph, delta=delta,

@@ -1,0 +1,139 @@
+"""Ready-made calibration problems (``fpsi calibrate <case>``): each builds the scene, the
+differentiable problem, the fitted quantities and the targets, from physical keyword
+arguments.
+
+    cantilever_synthetic  a reference run with known stiffness and damping; the fit starts
+                          from stiffness ×2 and damping ×3 and must recover both
+    cantilever_static     stiffness so the static tip deflection is Euler–Bernoulli's
+                          PL³/(3EI) (1.6 mm for K6.3.3's strip)
+    cantilever_damping    viscous damping so the free vibration decays with a prescribed
+                          damping ratio
+    elastic_gate          stiffness scale (E) and damping of the gate against the Antoci
+                          et al. (2007) experiment, fitted on t ≤ t_fit
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax.numpy as jnp
+import numpy as np
+
+from fpsi_jax.params import ParameterError
+from fpsi_jax.scenes import build
+from fpsi_jax.scenes.beams import euler_bernoulli_f1, tip_deflection
+
+from . import space as sp
+from .fit import Calibration
+from .rollout import prepare
+from .targets import FreeVibration, StaticDeflection, Trajectory
+
+
+def tracker(scene, idx):
+    """observe(state) = mean displacement of the discs ``idx`` from their start (2,)."""
+    idx = np.asarray(idx, int)
+    x0 = np.asarray(scene.solid.x[idx].mean(axis=0))
+    ii = jnp.asarray(idx)
+    return lambda s: jnp.mean(s.solid.x[ii], axis=0) - jnp.asarray(x0, s.solid.x.dtype)
+
+
+def cantilever_tip(scene) -> np.ndarray:
+    """The discs of the cantilever's free end (largest x)."""
+    x = np.asarray(scene.solid.x)
+    return np.nonzero(x[:, 0] >= x[:, 0].max() - 1e-9)[0]
+
+
+@dataclasses.dataclass
+class Case:
+    """A calibration ready to fit, with what its report needs."""
+
+    calibration: Calibration
+    meta: dict
+    truth: dict | None = None
+
+
+def _cantilever(variant, d, periods, damping, stiff_bounds, **kw):
+    scene = build("cantilever", variant=variant, d=d, damping=damping, **kw)
+    bk = scene.builder_kwargs
+    f1 = euler_bernoulli_f1(bk["E"], bk["rho"], bk["height"], bk["length"])
+    return scene, f1
+
+
+def cantilever_synthetic(*, d=0.0025, periods=2.25, damping=4.0, stiffness_start=2.0,
+                         damping_start_factor=3.0, stiff_bounds=(0.4, 2.5),
+                         damping_bounds=(0.1, 100.0), chunk=None) -> Case:
+    """Free vibration of K6.3.3's strip (discs ``d``; 2.5 mm by default, 2 rows, for speed)
+    over ``periods`` Euler–Bernoulli periods. Truth: the scene's stiffness (scale 1) and
+    ``damping`` c [1/s]; the reference is the truth run's own frequency and damping ratio
+    (measured as :class:`~calibrate.targets.FreeVibration` does). The fit starts from
+    stiffness × ``stiffness_start`` and damping × ``damping_start_factor``."""
+    scene, f1 = _cantilever("free", d, periods, damping, stiff_bounds)
+    fitted = [sp.stiffness(*stiff_bounds), sp.param("dem.damping", *damping_bounds)]
+    space0 = sp.ParamSpace(scene.params, fitted)
+    problem = prepare(scene, periods / f1, tracker(scene, cantilever_tip(scene)),
+                      stiffest=space0.extreme("hi"), chunk=chunk)
+    truth = {"stiffness": 1.0, "dem.damping": float(damping)}
+    space = sp.ParamSpace(problem.params, fitted,
+                          start={"stiffness": stiffness_start,
+                                 "dem.damping": damping_start_factor * damping})
+    probe = Calibration(problem, space, [FreeVibration(frequency=1.0, damping_ratio=1.0)])
+    u = probe.observe(space.z_of(truth))
+    target = FreeVibration.from_signal(problem.times, u)
+    cal = Calibration(problem, space, [target])
+    meta = {"case": "cantilever_synthetic", "d": d, "periods": periods, "f1_eb_hz": f1,
+            "n_steps": problem.n_steps, "dt": problem.dt, "n_discs": scene.solid.n,
+            "reference": {"frequency_hz": target.frequency,
+                          "damping_ratio": target.damping_ratio}}
+    return Case(cal, meta, truth)
+
+
+def cantilever_static(*, d=0.00125, deflection=None, load=1.0, stiffness_start=1.0,
+                      cycles=1.0, stiff_bounds=(0.5, 2.0), chunk=None) -> Case:
+    """Tip-loaded strip (K6.3.3: ``load`` 1 N, 1.6 mm Euler–Bernoulli deflection): fit the
+    stiffness scale so the static tip deflection equals ``deflection`` (default
+    PL³/(3EI)). The run is viscously damped at the first mode's critical rate
+    c = 4π f1 and lasts ``cycles``/f1 after a load ramp of half a period; the static value
+    is the mean over its last 10 %."""
+    scene, f1 = _cantilever("tip", d, None, 4 * math.pi * euler_bernoulli_f1(
+        10.0e6, 1100.0, 0.005, 0.079375), stiff_bounds, load=load, alpha=0.0)
+    bk = scene.builder_kwargs
+    f1 = euler_bernoulli_f1(bk["E"], bk["rho"], bk["height"], bk["length"])
+    ref = tip_deflection(load, bk["length"], bk["E"], bk["height"]) if deflection is None \
+        else deflection
+    scene.params = scene.params.replace(
+        dem=scene.params.dem.replace(damping=4 * math.pi * f1, load_ramp=0.5 / f1))
+    fitted = [sp.stiffness(*stiff_bounds)]
+    space0 = sp.ParamSpace(scene.params, fitted)
+    problem = prepare(scene, (0.5 + cycles) / f1, tracker(scene, cantilever_tip(scene)),
+                      stiffest=space0.extreme("hi"), chunk=chunk)
+    space = sp.ParamSpace(problem.params, fitted, start={"stiffness": stiffness_start})
+    target = StaticDeflection(value=-ref, component=1)
+    meta = {"case": "cantilever_static", "d": d, "reference_m": ref, "E": bk["E"],
+            "n_steps": problem.n_steps, "dt": problem.dt, "n_discs": scene.solid.n}
+    return Case(Calibration(problem, space, [target]), meta)
+
+
+def cantilever_damping(*, d=0.00125, zeta=0.05, periods=2.25, damping_start=2.0,
+                       damping_bounds=(0.1, 100.0), chunk=None) -> Case:
+    """Free vibration of the strip: fit the viscous damping c so the first mode decays with
+    damping ratio ``zeta`` (the analytic value is c = 4π f1 ζ, f1 the model's frequency)."""
+    scene, f1 = _cantilever("free", d, periods, damping_start, None)
+    fitted = [sp.param("dem.damping", *damping_bounds)]
+    problem = prepare(scene, periods / f1, tracker(scene, cantilever_tip(scene)),
+                      chunk=chunk)
+    space = sp.ParamSpace(problem.params, fitted)
+    target = FreeVibration(damping_ratio=zeta)
+    meta = {"case": "cantilever_damping", "d": d, "zeta": zeta, "f1_eb_hz": f1,
+            "n_steps": problem.n_steps, "dt": problem.dt, "n_discs": scene.solid.n}
+    return Case(Calibration(problem, space, [target]), meta)
+
+
+CASES = {"cantilever_synthetic": cantilever_synthetic,
+         "cantilever_static": cantilever_static,
+         "cantilever_damping": cantilever_damping}
+
+
+def get(name: str):
+    if name not in CASES:
+        raise ParameterError(f"unknown calibration case {name!r}; known: {', '.join(CASES)}")
+    return CASES[name]

@@ -1,0 +1,279 @@
+"""The calibration loop: an optax optimiser on the unconstrained z of a
+:class:`~calibrate.space.ParamSpace`, gradients by reverse mode through the checkpointed
+rollout, early stopping, Gauss–Newton standard errors, a JSON record and a plot.
+
+    cal = Calibration(problem, space, [target, ...])
+    res = fit(cal, max_steps=100)
+    res.save("results/fit.json"); res.plot("results/fit.png")
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import time
+from typing import Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from fpsi_jax import integrate
+from fpsi_jax.params import ParameterError
+from fpsi_jax.simulate import SimulationError
+from fpsi_jax.state import STATUS_CODES
+
+from .rollout import Problem
+from .space import ParamSpace
+from .targets import StaticDeflection, Trajectory, total_residuals
+
+
+class Calibration:
+    """A problem, the quantities fitted and the targets: the pure functions of z a fit needs
+    (residuals, loss and their derivatives), jitted once per neighbour-list capacity.
+
+    Every evaluation checks the run's status on the host: a neighbour overflow regrows the
+    lists and redoes the evaluation (no pair is dropped, as in ``simulate``); an unstable
+    run raises :class:`~fpsi_jax.simulate.SimulationError`."""
+
+    def __init__(self, problem: Problem, space: ParamSpace, targets: Sequence):
+        if not targets:
+            raise ParameterError("no calibration target given")
+        self.problem, self.space, self.targets = problem, space, tuple(targets)
+        self._build()
+
+    @property
+    def dtype(self):
+        return integrate.dtype(self.problem.phys)
+
+    def _build(self):
+        pr, space, targets, times = self.problem, self.space, self.targets, self.problem.times
+
+        def residuals(z, state0, base):
+            final, u = dataclasses.replace(pr, state0=state0).run(space.params(z, base))
+            return total_residuals(targets, times, u), (u, final.status)
+
+        def loss(z, state0, base):
+            r, aux = residuals(z, state0, base)
+            return jnp.sum(r * r), aux
+
+        self.residuals_fn, self.loss_fn = residuals, loss
+        self._fns = {
+            "value_and_grad": jax.jit(jax.value_and_grad(loss, has_aux=True)),
+            "value": jax.jit(loss),
+            "jacobian": jax.jit(jax.jacfwd(residuals, has_aux=True)),
+        }
+
+    def _call(self, kind: str, z):
+        z = jnp.asarray(z, self.dtype)
+        for _ in range(6):
+            out = self._fns[kind](z, self.problem.state0, self.problem.params)
+            status = (out[0][1][1] if kind == "value_and_grad" else out[1][1])
+            if bool(status.overflow) or bool(status.h_exceeded):
+                final, _ = jax.jit(self.problem.run)(self.space.params(z, self.problem.params))
+                self.problem = self.problem.regrown(final)
+                self._build()
+                continue
+            if bool(status.bad):
+                code = int(status.code)
+                raise SimulationError(int(status.step), int(status.step) * self.problem.dt,
+                                      int(status.particle), STATUS_CODES[code],
+                                      phase="solid" if code >= 6 else "fluid")
+            return out
+        raise RuntimeError("the neighbour lists kept overflowing")
+
+    def value_and_grad(self, z):
+        """((loss, (u, status)), dloss/dz)."""
+        return self._call("value_and_grad", z)
+
+    def value(self, z):
+        """(loss, (u, status))."""
+        return self._call("value", z)
+
+    def jacobian(self, z):
+        """(d residuals/dz, (u, status)), forward mode: one JVP per fitted quantity."""
+        return self._call("jacobian", z)
+
+    def observe(self, z) -> np.ndarray:
+        """The observations (n_steps, …) at z."""
+        return np.asarray(self.value(z)[1][0])
+
+
+# --- uncertainty ----------------------------------------------------------------------------
+def gauss_newton_stderr(cal: Calibration, z, noise: float | None = None) -> dict:
+    """Gauss–Newton standard errors of the fitted quantities at z.
+
+    Cov_z = s² (JᵀJ)⁻¹ with J = ∂r/∂z; s² = RSS/(m − p) (residual variance) when there are
+    more residuals m than parameters p, or ``noise``² when given (the residuals' assumed
+    measurement error, in residual units). The errors of the physical values follow by the
+    delta method, σ_v = |dv/dz| σ_z. Returns name → {std_error, rel_std_error}, plus the
+    correlation matrix and s."""
+    J, (u, _) = cal.jacobian(z)
+    J = np.asarray(J, float)
+    z = jnp.asarray(z, cal.dtype)
+    r = np.asarray(total_residuals(cal.targets, cal.problem.times, jnp.asarray(u)), float)
+    m, p = J.shape
+    if noise is not None:
+        s2, how = float(noise) ** 2, f"assumed residual error {noise}"
+    elif m > p:
+        s2, how = float(r @ r) / (m - p), f"RSS/(m - p), m = {m}, p = {p}"
+    else:
+        return {"note": f"m = {m} residuals for p = {p} parameters: give noise= for errors"}
+    cov = s2 * np.linalg.pinv(J.T @ J)
+    dv = np.asarray(jax.jacfwd(cal.space.values)(z), float).diagonal()
+    v = np.asarray(cal.space.values(z), float)
+    sd_z = np.sqrt(np.clip(np.diag(cov), 0, None))
+    out = {name: {"value": float(v[k]), "std_error": float(abs(dv[k]) * sd_z[k]),
+                  "rel_std_error": float(abs(dv[k]) * sd_z[k] / abs(v[k]))}
+           for k, name in enumerate(cal.space.names)}
+    d = np.where(sd_z > 0, sd_z, 1.0)
+    out["correlation"] = (cov / np.outer(d, d)).tolist()
+    out["s"] = math.sqrt(s2)
+    out["s_from"] = how
+    return out
+
+
+# --- the loop -------------------------------------------------------------------------------
+@dataclasses.dataclass
+class FitResult:
+    names: list
+    start: dict
+    best: dict
+    z_start: list
+    z_best: list
+    history: list            # per step: {"step", "loss", "values", "grad_norm", "wall_s"}
+    loss_start: float
+    loss_best: float
+    steps: int
+    stopped: str
+    wall_s: float
+    stderr: dict | None = None
+    extra: dict = dataclasses.field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {k: v for k, v in dataclasses.asdict(self).items()}
+
+    def save(self, path: str):
+        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+        with open(path, "w") as fh:
+            json.dump(self.to_json(), fh, indent=1, default=float)
+
+
+def make_optimizer(name: str, learning_rate: float, max_steps: int):
+    """'adam' (cosine-decayed learning rate) or 'sgd' with momentum; z is O(1) per unit of
+    log parameter, so a learning rate of 0.05–0.1 moves a parameter by 5–10 % per step."""
+    sched = optax.cosine_decay_schedule(learning_rate, max(1, max_steps), alpha=0.05)
+    if name == "adam":
+        return optax.adam(sched)
+    if name == "sgd":
+        return optax.sgd(sched, momentum=0.9)
+    raise ParameterError(f"optimizer = {name!r}; allowed 'adam', 'sgd'")
+
+
+def fit(cal: Calibration, *, z0=None, optimizer: str = "adam", learning_rate: float = 0.1,
+        max_steps: int = 100, loss_tol: float = 0.0, rel_tol: float = 1e-4, patience: int = 10,
+        noise: float | None = None, progress: bool = True, log=print) -> FitResult:
+    """Minimise the loss of ``cal`` from z0 (default: the space's start).
+
+    Stops after ``max_steps`` optimiser steps, when the loss falls below ``loss_tol``, or
+    when the best loss has not improved by a relative ``rel_tol`` for ``patience`` steps.
+    The best point seen is returned (with Gauss–Newton standard errors, see
+    :func:`gauss_newton_stderr`)."""
+    if max_steps < 1:
+        raise ParameterError(f"max_steps = {max_steps} out of range; allowed [1, inf)")
+    opt = make_optimizer(optimizer, learning_rate, max_steps)
+    z = jnp.asarray(cal.space.z0 if z0 is None else z0, cal.dtype)
+    state = opt.init(z)
+    t0 = time.perf_counter()
+    history, best, best_z, since, stopped = [], math.inf, z, 0, "max_steps"
+    loss0 = None
+    for k in range(max_steps + 1):
+        (loss, _), g = cal.value_and_grad(z)
+        loss = float(loss)
+        if not math.isfinite(loss) or not bool(jnp.all(jnp.isfinite(g))):
+            stopped = f"non-finite loss or gradient at step {k}"
+            break
+        vals = dict(zip(cal.space.names, np.asarray(cal.space.values(z), float).tolist()))
+        history.append({"step": k, "loss": loss, "values": vals,
+                        "grad_norm": float(jnp.linalg.norm(g)),
+                        "wall_s": time.perf_counter() - t0})
+        if progress:
+            log(f"step {k:3d}  loss {loss:.4e}  " + "  ".join(f"{n} {v:.5g}"
+                                                            for n, v in vals.items()))
+        if loss0 is None:
+            loss0 = loss
+        if loss < best * (1 - rel_tol):
+            best, best_z, since = loss, z, 0
+        else:
+            since += 1
+            if loss < best:
+                best, best_z = loss, z
+        if loss <= loss_tol:
+            stopped = "loss_tol"
+            break
+        if since >= patience:
+            stopped = f"no improvement in {patience} steps"
+            break
+        if k == max_steps:
+            break
+        upd, state = opt.update(g, state, z)
+        z = optax.apply_updates(z, upd)
+    wall = time.perf_counter() - t0
+    stderr = gauss_newton_stderr(cal, best_z, noise)
+    space = cal.space
+    return FitResult(names=space.names, start=space.report(space.z0 if z0 is None else z0),
+                     best=space.report(best_z), z_start=np.asarray(z0 if z0 is not None
+                                                                   else space.z0).tolist(),
+                     z_best=np.asarray(best_z).tolist(), history=history,
+                     loss_start=float(loss0), loss_best=float(best), steps=len(history) - 1,
+                     stopped=stopped, wall_s=wall, stderr=stderr)
+
+
+# --- plots ----------------------------------------------------------------------------------
+def plot_fit(cal: Calibration, result: FitResult, path: str, title: str = "",
+             component_names=("u_x", "u_y"), extra_curves=()):
+    """Loss history, and the observed displacement at the start and at the best point
+    against each target's reference (trajectory samples, static value)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = cal.problem.times
+    u0 = cal.observe(result.z_start)
+    u1 = cal.observe(result.z_best)
+    comps = sorted({c for tg in cal.targets for c in getattr(tg, "components",
+                                                              (getattr(tg, "component", 1),))})
+    fig, axes = plt.subplots(1, 1 + len(comps), figsize=(4.2 * (1 + len(comps)), 3.6))
+    ax = axes[0]
+    ax.semilogy([h["step"] for h in result.history], [h["loss"] for h in result.history])
+    ax.set_xlabel("optimiser step")
+    ax.set_ylabel("loss")
+    ax.grid(alpha=0.3)
+    for ax, c in zip(axes[1:], comps):
+        ax.plot(t, u0[:, c] * 1e3, color="0.6", lw=1, label="start")
+        ax.plot(t, u1[:, c] * 1e3, color="C0", lw=1.2, label="fitted")
+        for tg in cal.targets:
+            if isinstance(tg, Trajectory) and c in tg.components:
+                j = tg.components.index(c)
+                v = np.asarray(tg.values, float)
+                tr = np.asarray(tg.t_ref, float)
+                ax.plot(tr, v[:, j] * 1e3, "k.", ms=4, label=f"{tg.name} (reference)")
+                for edge in tg.window:
+                    if edge is not None:
+                        ax.axvline(edge, color="k", lw=0.6, ls=":")
+            if isinstance(tg, StaticDeflection) and tg.component == c:
+                ax.axhline(tg.value * 1e3, color="k", ls="--", lw=0.8, label="reference")
+        for label, tc, uc in extra_curves:
+            ax.plot(tc, uc[:, c] * 1e3, lw=1, ls="--", label=label)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel(f"{component_names[c]} [mm]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,201 @@
+"""Targets: reference data turned into differentiable residuals.
+
+Every target reads the per-step observations of a :class:`~calibrate.rollout.Problem`
+(here the displacement u = (u_x, u_y) of a tracked point, shape (n_steps, 2)) and returns
+a residual vector r(u) in jnp; the loss of a fit is Σ_targets w·mean(r²), and the
+Gauss–Newton standard errors use the Jacobian of the stacked residuals.
+
+* :class:`StaticDeflection`  the mean of one component over the last part of a damped run
+  against a value (Euler–Bernoulli δ = PL³/3EI for the cantilever): r = ū/u* − 1.
+* :class:`FreeVibration`  damped frequency and decay of a free vibration, measured as an
+  experimentalist would: zero crossings (linearly interpolated between steps) give the
+  half periods, the largest |u| between successive crossings gives the peaks, and
+  least squares over the crossings and log-peaks give f_d and the logarithmic decrement
+  δ per half cycle; ζ = δ/√(π² + δ²), f_n = f_d/√(1 − ζ²). r = log(f_n/f*), log(ζ/ζ*).
+  Which crossing falls in which step is piecewise constant, so the gradient flows
+  through the interpolated crossing times and the peak values (exact to O(Δt²)).
+* :class:`Trajectory`  a sampled curve (e.g. the gate's tip u_x, u_y from the experiment)
+  interpolated at the reference times inside a window: r = (u(t_k) − u*_k)/scale.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+
+def _window(times, t0, t1):
+    t = np.asarray(times)
+    return (t >= (t0 if t0 is not None else -np.inf)) & (t <= (t1 if t1 is not None
+                                                                   else np.inf))
+
+
+@dataclasses.dataclass(frozen=True)
+class StaticDeflection:
+    """Mean of component ``component`` of u over the last ``tail`` fraction of the run
+    against ``value``."""
+
+    value: float
+    component: int = 1
+    tail: float = 0.1
+    weight: float = 1.0
+    name: str = "static_deflection"
+
+    def measure(self, times, u):
+        n = u.shape[0]
+        k = max(1, int(round(self.tail * n)))
+        return jnp.mean(u[n - k:, self.component])
+
+    def residuals(self, times, u):
+        return jnp.atleast_1d(self.measure(times, u) / self.value - 1.0)
+
+    def report(self, times, u) -> dict:
+        m = float(self.measure(times, jnp.asarray(u)))
+        return {"quantity": "static deflection [m]", "value": m, "reference": self.value,
+                "rel_error": m / self.value - 1.0}
+
+
+def free_vibration(times, y, max_crossings: int = 64, skip: int = 0):
+    """(f_n [Hz], ζ, number of half cycles used) of the free vibration y(t) (jnp,
+    differentiable). ``skip`` drops the first crossings (an initial transient)."""
+    times = jnp.asarray(times)
+    dt = times[1] - times[0]
+    s = jnp.sign(y)
+    cross = (s[:-1] * s[1:]) < 0                        # a crossing between k and k + 1
+    k = jnp.nonzero(cross, size=max_crossings, fill_value=0)[0]
+    n = jnp.minimum(jnp.sum(cross), max_crossings)
+    y0, y1 = y[k], y[k + 1]
+    tc = times[k] + dt * y0 / (y0 - y1)
+    valid = (jnp.arange(max_crossings) < n) & (jnp.arange(max_crossings) >= skip)
+    # half cycle m lies between crossings m and m + 1
+    seg = jnp.cumsum(jnp.concatenate([jnp.zeros(1, jnp.int32), cross.astype(jnp.int32)]))
+    peaks = jax.ops.segment_max(jnp.abs(y), seg, num_segments=max_crossings + 1)[1:]
+    pvalid = valid & (jnp.arange(max_crossings) + 1 < n)
+    idx = jnp.arange(max_crossings, dtype=y.dtype)
+
+    def slope(xv, yv, w):
+        w = w.astype(yv.dtype)
+        sw = jnp.sum(w)
+        xm, ym = jnp.sum(w * xv) / sw, jnp.sum(w * yv) / sw
+        return jnp.sum(w * (xv - xm) * (yv - ym)) / jnp.sum(w * (xv - xm) ** 2)
+
+    half_period = slope(idx, tc, valid)
+    delta = -slope(idx, jnp.log(jnp.where(pvalid, peaks, 1.0)), pvalid)
+    zeta = delta / jnp.sqrt(jnp.pi ** 2 + delta ** 2)
+    f_n = 1.0 / (2.0 * half_period) / jnp.sqrt(1.0 - zeta ** 2)
+    return f_n, zeta, jnp.sum(pvalid)
+
+
+@dataclasses.dataclass(frozen=True)
+class FreeVibration:
+    """Frequency and/or damping ratio of the free vibration of component ``component``.
+    Either reference may be None (not fitted). Needs ≥ 3 half cycles in the run."""
+
+    frequency: float | None = None
+    damping_ratio: float | None = None
+    component: int = 1
+    max_crossings: int = 64
+    skip: int = 0
+    weight: float = 1.0
+    name: str = "free_vibration"
+
+    def measure(self, times, u):
+        return free_vibration(times, u[:, self.component], self.max_crossings, self.skip)
+
+    def residuals(self, times, u):
+        f, z, _ = self.measure(times, u)
+        r = []
+        if self.frequency is not None:
+            r.append(jnp.log(f / self.frequency))
+        if self.damping_ratio is not None:
+            r.append(jnp.log(z / self.damping_ratio))
+        return jnp.stack(r)
+
+    @classmethod
+    def from_signal(cls, times, u, **kw):
+        """The target a synthetic run's own frequency and damping ratio define."""
+        c = cls(**{k: v for k, v in kw.items() if k in ("component", "max_crossings",
+                                                        "skip", "weight", "name")})
+        f, z, n = c.measure(times, jnp.asarray(u))
+        if int(n) < 2:
+            raise ValueError(f"free vibration: only {int(n)} complete half cycles; run longer")
+        return dataclasses.replace(c, frequency=float(f), damping_ratio=float(z))
+
+    def report(self, times, u) -> dict:
+        f, z, n = (float(a) for a in self.measure(times, jnp.asarray(u)))
+        out = {"quantity": "free vibration", "frequency_hz": f, "damping_ratio": z,
+               "half_cycles": int(n)}
+        if self.frequency is not None:
+            out.update(frequency_ref=self.frequency, frequency_rel_error=f / self.frequency - 1)
+        if self.damping_ratio is not None:
+            out.update(damping_ratio_ref=self.damping_ratio,
+                       damping_ratio_rel_error=z / self.damping_ratio - 1)
+        return out
+
+
+@dataclasses.dataclass(frozen=True)
+class Trajectory:
+    """Reference samples ``values`` (m, c) at ``t_ref`` of the components ``components``,
+    compared inside ``window`` = (t0, t1) after dividing by ``scale`` (one per component;
+    default: the largest |value| of each)."""
+
+    t_ref: tuple
+    values: tuple
+    components: tuple = (0, 1)
+    window: tuple = (None, None)
+    scale: tuple | None = None
+    weight: float = 1.0
+    name: str = "trajectory"
+
+    def _sel(self, times):
+        t = np.asarray(self.t_ref, float)
+        tmax = float(np.asarray(times)[-1])
+        inside = _window(t, *self.window) & (t <= tmax + 1e-12) & (t > 0)
+        if not inside.any():
+            raise ValueError(f"{self.name}: no reference sample inside the window "
+                             f"{self.window} and the run (t ≤ {tmax:.4g} s)")
+        return inside
+
+    def _scale(self):
+        v = np.asarray(self.values, float)
+        return (np.max(np.abs(v), axis=0) if self.scale is None
+                else np.asarray(self.scale, float))
+
+    def sample(self, times, u):
+        """The simulated components at the reference times inside the window (m, c)."""
+        inside = self._sel(times)
+        tq = jnp.asarray(np.asarray(self.t_ref, float)[inside], u.dtype)
+        tt = jnp.concatenate([jnp.zeros(1, u.dtype), jnp.asarray(times, u.dtype)])
+        cols = [jnp.interp(tq, tt, jnp.concatenate([jnp.zeros(1, u.dtype), u[:, c]]))
+                for c in self.components]
+        return jnp.stack(cols, axis=1)
+
+    def residuals(self, times, u):
+        inside = self._sel(times)
+        ref = jnp.asarray(np.asarray(self.values, float)[inside], u.dtype)
+        return ((self.sample(times, u) - ref) / jnp.asarray(self._scale(), u.dtype)).ravel()
+
+    def rms(self, times, u, window=None) -> list[float]:
+        """RMS error of each component [m] inside ``window`` (default: the target's)."""
+        t = dataclasses.replace(self, window=window or self.window)
+        inside = t._sel(times)
+        ref = np.asarray(self.values, float)[inside]
+        d = np.asarray(t.sample(times, jnp.asarray(u))) - ref
+        return [float(np.sqrt(np.mean(d[:, k] ** 2))) for k in range(d.shape[1])]
+
+    def report(self, times, u) -> dict:
+        r = self.rms(times, u)
+        return {"quantity": f"RMS of components {list(self.components)} [m]", "rms": r,
+                "window": list(self.window)}
+
+
+def total_residuals(targets, times, u):
+    """Stacked residuals, each target's scaled by √(w/m) so that Σ r² = Σ w·mean(r_t²)."""
+    out = []
+    for t in targets:
+        r = t.residuals(times, u)
+        out.append(r * jnp.sqrt(t.weight / r.shape[0]))
+    return jnp.concatenate(out)
