@@ -161,74 +161,133 @@ class FitResult:
             json.dump(self.to_json(), fh, indent=1, default=float)
 
 
+OPTIMIZERS = ("lm", "adam", "sgd")
+
+
 def make_optimizer(name: str, learning_rate: float, max_steps: int):
-    """'adam' (cosine-decayed learning rate) or 'sgd' with momentum; z is O(1) per unit of
-    log parameter, so a learning rate of 0.05–0.1 moves a parameter by 5–10 % per step."""
+    """optax 'adam' (cosine-decayed learning rate) or 'sgd' with momentum; z is O(1) per
+    unit of log parameter, so a learning rate of 0.05–0.1 moves a parameter by 5–10 % per
+    step."""
     sched = optax.cosine_decay_schedule(learning_rate, max(1, max_steps), alpha=0.05)
     if name == "adam":
         return optax.adam(sched)
     if name == "sgd":
         return optax.sgd(sched, momentum=0.9)
-    raise ParameterError(f"optimizer = {name!r}; allowed 'adam', 'sgd'")
+    raise ParameterError(f"optimizer = {name!r}; allowed {OPTIMIZERS}")
 
 
-def fit(cal: Calibration, *, z0=None, optimizer: str = "adam", learning_rate: float = 0.1,
+class _Tracker:
+    """History, best point and early stopping shared by both loops."""
+
+    def __init__(self, cal, rel_tol, patience, progress, log):
+        self.cal, self.rel_tol, self.patience = cal, rel_tol, patience
+        self.progress, self.log = progress, log
+        self.history, self.best, self.since, self.t0 = [], math.inf, 0, time.perf_counter()
+        self.best_z = None
+
+    def record(self, k, z, loss, grad_norm, **extra) -> bool:
+        """Log step k; returns True when the patience has run out."""
+        vals = dict(zip(self.cal.space.names, np.asarray(self.cal.space.values(z),
+                                                         float).tolist()))
+        self.history.append({"step": k, "loss": loss, "values": vals, "grad_norm": grad_norm,
+                             "wall_s": time.perf_counter() - self.t0, **extra})
+        if self.progress:
+            self.log(f"step {k:3d}  loss {loss:.4e}  " + "  ".join(
+                f"{n} {v:.6g}" for n, v in vals.items()))
+        if loss < self.best * (1 - self.rel_tol):
+            self.since = 0
+        else:
+            self.since += 1
+        if loss < self.best:
+            self.best, self.best_z = loss, z
+        return self.since >= self.patience
+
+
+def fit(cal: Calibration, *, z0=None, optimizer: str = "lm", learning_rate: float = 0.1,
         max_steps: int = 100, loss_tol: float = 0.0, rel_tol: float = 1e-4, patience: int = 10,
         noise: float | None = None, progress: bool = True, log=print) -> FitResult:
-    """Minimise the loss of ``cal`` from z0 (default: the space's start).
+    """Minimise the loss Σ r² of ``cal`` from z0 (default: the space's start).
 
+    optimizer  'lm': Levenberg–Marquardt on the residuals, with the Jacobian by forward mode
+               (one JVP per fitted quantity through the rollout; the right tool for a few
+               parameters and a least-squares loss); 'adam' / 'sgd': optax first-order
+               optimisers on the reverse-mode gradient through the checkpointed rollout
+               (``learning_rate`` in z units; any number of parameters).
     Stops after ``max_steps`` optimiser steps, when the loss falls below ``loss_tol``, or
     when the best loss has not improved by a relative ``rel_tol`` for ``patience`` steps.
-    The best point seen is returned (with Gauss–Newton standard errors, see
-    :func:`gauss_newton_stderr`)."""
+    The best point seen is returned, with Gauss–Newton standard errors
+    (:func:`gauss_newton_stderr`)."""
     if max_steps < 1:
         raise ParameterError(f"max_steps = {max_steps} out of range; allowed [1, inf)")
-    opt = make_optimizer(optimizer, learning_rate, max_steps)
+    if optimizer not in OPTIMIZERS:
+        raise ParameterError(f"optimizer = {optimizer!r}; allowed {OPTIMIZERS}")
     z = jnp.asarray(cal.space.z0 if z0 is None else z0, cal.dtype)
+    tr = _Tracker(cal, rel_tol, patience, progress, log)
+    loop = _levenberg_marquardt if optimizer == "lm" else _first_order
+    stopped = loop(cal, z, tr, optimizer, learning_rate, max_steps, loss_tol)
+    stderr = gauss_newton_stderr(cal, tr.best_z, noise)
+    space = cal.space
+    return FitResult(names=space.names, start=space.report(z), best=space.report(tr.best_z),
+                     z_start=np.asarray(z).tolist(), z_best=np.asarray(tr.best_z).tolist(),
+                     history=tr.history, loss_start=tr.history[0]["loss"],
+                     loss_best=float(tr.best), steps=tr.history[-1]["step"], stopped=stopped,
+                     wall_s=time.perf_counter() - tr.t0, stderr=stderr,
+                     extra={"optimizer": optimizer})
+
+
+def _first_order(cal, z, tr, optimizer, learning_rate, max_steps, loss_tol) -> str:
+    opt = make_optimizer(optimizer, learning_rate, max_steps)
     state = opt.init(z)
-    t0 = time.perf_counter()
-    history, best, best_z, since, stopped = [], math.inf, z, 0, "max_steps"
-    loss0 = None
     for k in range(max_steps + 1):
         (loss, _), g = cal.value_and_grad(z)
         loss = float(loss)
         if not math.isfinite(loss) or not bool(jnp.all(jnp.isfinite(g))):
-            stopped = f"non-finite loss or gradient at step {k}"
-            break
-        vals = dict(zip(cal.space.names, np.asarray(cal.space.values(z), float).tolist()))
-        history.append({"step": k, "loss": loss, "values": vals,
-                        "grad_norm": float(jnp.linalg.norm(g)),
-                        "wall_s": time.perf_counter() - t0})
-        if progress:
-            log(f"step {k:3d}  loss {loss:.4e}  " + "  ".join(f"{n} {v:.5g}"
-                                                            for n, v in vals.items()))
-        if loss0 is None:
-            loss0 = loss
-        if loss < best * (1 - rel_tol):
-            best, best_z, since = loss, z, 0
-        else:
-            since += 1
-            if loss < best:
-                best, best_z = loss, z
+            return f"non-finite loss or gradient at step {k}"
+        out = tr.record(k, z, loss, float(jnp.linalg.norm(g)))
         if loss <= loss_tol:
-            stopped = "loss_tol"
-            break
-        if since >= patience:
-            stopped = f"no improvement in {patience} steps"
-            break
+            return "loss_tol"
+        if out:
+            return f"no improvement in {tr.patience} steps"
         if k == max_steps:
-            break
+            return "max_steps"
         upd, state = opt.update(g, state, z)
         z = optax.apply_updates(z, upd)
-    wall = time.perf_counter() - t0
-    stderr = gauss_newton_stderr(cal, best_z, noise)
-    space = cal.space
-    return FitResult(names=space.names, start=space.report(space.z0 if z0 is None else z0),
-                     best=space.report(best_z), z_start=np.asarray(z0 if z0 is not None
-                                                                   else space.z0).tolist(),
-                     z_best=np.asarray(best_z).tolist(), history=history,
-                     loss_start=float(loss0), loss_best=float(best), steps=len(history) - 1,
-                     stopped=stopped, wall_s=wall, stderr=stderr)
+    return "max_steps"
+
+
+def _residuals_at(cal, z):
+    J, (u, _) = cal.jacobian(z)
+    r = total_residuals(cal.targets, cal.problem.times, u)
+    return np.asarray(J, float), np.asarray(r, float)
+
+
+def _levenberg_marquardt(cal, z, tr, optimizer, learning_rate, max_steps, loss_tol) -> str:
+    """z ← z − (JᵀJ + μ diag JᵀJ)⁻¹ Jᵀr; a step that raises the loss is rejected (μ × 4),
+    an accepted one relaxes μ (÷ 3). Every step costs one Jacobian evaluation."""
+    J, r = _residuals_at(cal, z)
+    mu = 1e-3
+    loss = float(r @ r)
+    for k in range(max_steps + 1):
+        if not math.isfinite(loss):
+            return f"non-finite loss at step {k}"
+        out = tr.record(k, z, loss, float(2 * np.linalg.norm(J.T @ r)), mu=mu)
+        if loss <= loss_tol:
+            return "loss_tol"
+        if out:
+            return f"no improvement in {tr.patience} steps"
+        if k == max_steps:
+            return "max_steps"
+        A = J.T @ J
+        step = -np.linalg.solve(A + mu * np.diag(np.diag(A)) + 1e-30 * np.eye(len(r) and
+                                                                          A.shape[0]), J.T @ r)
+        z_try = z + jnp.asarray(step, cal.dtype)
+        J_try, r_try = _residuals_at(cal, z_try)
+        loss_try = float(r_try @ r_try)
+        if math.isfinite(loss_try) and loss_try < loss:
+            z, J, r, loss, mu = z_try, J_try, r_try, loss_try, max(mu / 3.0, 1e-9)
+        else:
+            mu *= 4.0
+    return "max_steps"
 
 
 # --- plots ----------------------------------------------------------------------------------

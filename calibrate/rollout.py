@@ -57,6 +57,7 @@ class Problem:
     params   base Params (arrays of the Physics' dtype), dt included
     n_steps  steps per rollout;  chunk  steps per checkpointed chunk
     observe  State → small pytree recorded every step
+    dt       the time step as a Python float (the bound-checked value)
     """
 
     scene: Scene
@@ -66,10 +67,8 @@ class Problem:
     n_steps: int
     chunk: int
     observe: Callable
+    dt: float = 0.0
 
-    @property
-    def dt(self) -> float:
-        return float(self.params.dt)
 
     @property
     def times(self) -> np.ndarray:
@@ -111,7 +110,8 @@ def prepare(scene: Scene, t_end: float, observe: Callable, *, dt: float | None =
     state = integrate.init_state(scene, phys, p)
     n = int(math.ceil(t_end / float(base.dt) - 1e-9))
     return Problem(scene=scene, phys=phys, state0=state, params=p, n_steps=n,
-                   chunk=int(chunk or max(1, math.ceil(math.sqrt(n)))), observe=observe)
+                   chunk=int(chunk or max(1, math.ceil(math.sqrt(n)))), observe=observe,
+                   dt=float(base.dt))
 
 
 def check_status(final: State, dt: float) -> str | None:

@@ -1,4 +1,4 @@
-"""Command line: ``fpsi list | run | validate``.
+"""Command line: ``fpsi list | run | validate | calibrate``.
 
 Bad input (unknown scene, key or out-of-range value) prints one line naming it and the
 allowed values, exits with code 2 and writes nothing.
@@ -108,6 +108,11 @@ def cmd_list(args):
     print("validation cases:")
     for name, d in validate.DESCRIPTIONS.items():
         print(f"  {name:20s} {d}")
+    from calibrate import cases
+    print("calibration cases:")
+    for name, fn in cases.CASES.items():
+        doc = (fn.__doc__ or "").strip().splitlines()[0]
+        print(f"  {name:20s} {doc}")
     return 0
 
 
@@ -193,13 +198,21 @@ def make_parser():
     v.add_argument("--quick", action="store_true", help="coarse, fast versions")
     v.add_argument("--set", action="append", metavar="KEY=VALUE")
     v.add_argument("--json", default=None, help="write the records as JSON")
+    from calibrate import cli as calibrate_cli
+    calibrate_cli.add_parser(sub)
     return p
+
+
+def cmd_calibrate(args):
+    from calibrate import cli as calibrate_cli
+    return calibrate_cli.run(args)
 
 
 def main(argv=None):
     args = make_parser().parse_args(argv)
     try:
-        return {"list": cmd_list, "run": cmd_run, "validate": cmd_validate}[args.cmd](args)
+        return {"list": cmd_list, "run": cmd_run, "validate": cmd_validate,
+                "calibrate": cmd_calibrate}[args.cmd](args)
     except ParameterError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
