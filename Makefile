@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY      = $(VENV)/bin/python
 STAMP   = $(VENV)/.installed
 
-.PHONY: run test test-slow validate bench clean
+.PHONY: run test test-slow validate bench calibrate clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +25,11 @@ test-slow: $(STAMP)
 
 validate: $(STAMP)
 	$(VENV)/bin/fpsi validate
+
+# Issue 6's calibrations (cantilever: ~10 min; elastic gate, coarse: ~30 min).
+calibrate: $(STAMP)
+	$(PY) experiments/calibrate_cantilever.py
+	$(PY) experiments/calibrate_gate.py
 
 bench: $(STAMP)
 	$(PY) experiments/bench_sph.py

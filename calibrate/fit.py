@@ -64,13 +64,14 @@ class Calibration:
             "value_and_grad": jax.jit(jax.value_and_grad(loss, has_aux=True)),
             "value": jax.jit(loss),
             "jacobian": jax.jit(jax.jacfwd(residuals, has_aux=True)),
+            "residuals": jax.jit(residuals),
         }
 
     def _call(self, kind: str, z):
         z = jnp.asarray(z, self.dtype)
         for _ in range(6):
             out = self._fns[kind](z, self.problem.state0, self.problem.params)
-            status = (out[0][1][1] if kind == "value_and_grad" else out[1][1])
+            status = out[0][1][1] if kind == "value_and_grad" else out[1][1]
             if bool(status.overflow) or bool(status.h_exceeded):
                 final, _ = jax.jit(self.problem.run)(self.space.params(z, self.problem.params))
                 self.problem = self.problem.regrown(final)
@@ -96,13 +97,25 @@ class Calibration:
         """(d residuals/dz, (u, status)), forward mode: one JVP per fitted quantity."""
         return self._call("jacobian", z)
 
+    def jacobian_fd(self, z, h: float = 0.05):
+        """(forward-difference d residuals/dz with step ``h`` in z, (u, status) at z): a
+        secant over a finite step, for losses whose pointwise derivative is dominated by
+        chaotic growth (long float32 SPH rollouts; see README)."""
+        z = jnp.asarray(z, self.dtype)
+        r0, aux = self._call("residuals", z)
+        cols = []
+        for k in range(z.shape[0]):
+            rk, _ = self._call("residuals", z.at[k].add(h))
+            cols.append((rk - r0) / h)
+        return jnp.stack(cols, axis=1), aux
+
     def observe(self, z) -> np.ndarray:
         """The observations (n_steps, …) at z."""
         return np.asarray(self.value(z)[1][0])
 
 
 # --- uncertainty ----------------------------------------------------------------------------
-def gauss_newton_stderr(cal: Calibration, z, noise: float | None = None) -> dict:
+def gauss_newton_stderr(cal: Calibration, z, noise: float | None = None, jac=None) -> dict:
     """Gauss–Newton standard errors of the fitted quantities at z.
 
     Cov_z = s² (JᵀJ)⁻¹ with J = ∂r/∂z; s² = RSS/(m − p) (residual variance) when there are
@@ -110,7 +123,7 @@ def gauss_newton_stderr(cal: Calibration, z, noise: float | None = None) -> dict
     measurement error, in residual units). The errors of the physical values follow by the
     delta method, σ_v = |dv/dz| σ_z. Returns name → {std_error, rel_std_error}, plus the
     correlation matrix and s."""
-    J, (u, _) = cal.jacobian(z)
+    J, (u, _) = (jac or cal.jacobian)(z)
     J = np.asarray(J, float)
     z = jnp.asarray(z, cal.dtype)
     r = np.asarray(total_residuals(cal.targets, cal.problem.times, jnp.asarray(u)), float)
@@ -205,7 +218,8 @@ class _Tracker:
 
 def fit(cal: Calibration, *, z0=None, optimizer: str = "lm", learning_rate: float = 0.1,
         max_steps: int = 100, loss_tol: float = 0.0, rel_tol: float = 1e-4, patience: int = 10,
-        noise: float | None = None, progress: bool = True, log=print) -> FitResult:
+        noise: float | None = None, progress: bool = True, log=print,
+        jacobian: str = "ad", fd_step: float = 0.05) -> FitResult:
     """Minimise the loss Σ r² of ``cal`` from z0 (default: the space's start).
 
     optimizer  'lm': Levenberg–Marquardt on the residuals, with the Jacobian by forward mode
@@ -215,6 +229,9 @@ def fit(cal: Calibration, *, z0=None, optimizer: str = "lm", learning_rate: floa
                (``learning_rate`` in z units; any number of parameters).
     Stops after ``max_steps`` optimiser steps, when the loss falls below ``loss_tol``, or
     when the best loss has not improved by a relative ``rel_tol`` for ``patience`` steps.
+    jacobian   'ad' (forward mode, exact) or 'fd' (forward differences with ``fd_step`` in
+               z: a secant, for chaotic long rollouts whose pointwise derivative does not
+               point downhill; 'lm' only).
     The best point seen is returned, with Gauss–Newton standard errors
     (:func:`gauss_newton_stderr`)."""
     if max_steps < 1:
@@ -223,16 +240,22 @@ def fit(cal: Calibration, *, z0=None, optimizer: str = "lm", learning_rate: floa
         raise ParameterError(f"optimizer = {optimizer!r}; allowed {OPTIMIZERS}")
     z = jnp.asarray(cal.space.z0 if z0 is None else z0, cal.dtype)
     tr = _Tracker(cal, rel_tol, patience, progress, log)
-    loop = _levenberg_marquardt if optimizer == "lm" else _first_order
-    stopped = loop(cal, z, tr, optimizer, learning_rate, max_steps, loss_tol)
-    stderr = gauss_newton_stderr(cal, tr.best_z, noise)
+    if jacobian not in ("ad", "fd"):
+        raise ParameterError(f"jacobian = {jacobian!r}; allowed 'ad', 'fd'")
+    if optimizer == "lm":
+        jac = cal.jacobian if jacobian == "ad" else (lambda zz: cal.jacobian_fd(zz, fd_step))
+        stopped = _levenberg_marquardt(cal, z, tr, jac, max_steps, loss_tol)
+    else:
+        stopped = _first_order(cal, z, tr, optimizer, learning_rate, max_steps, loss_tol)
+    stderr = gauss_newton_stderr(cal, tr.best_z, noise, jac=None if jacobian == "ad"
+                                 else (lambda zz: cal.jacobian_fd(zz, fd_step)))
     space = cal.space
     return FitResult(names=space.names, start=space.report(z), best=space.report(tr.best_z),
                      z_start=np.asarray(z).tolist(), z_best=np.asarray(tr.best_z).tolist(),
                      history=tr.history, loss_start=tr.history[0]["loss"],
                      loss_best=float(tr.best), steps=tr.history[-1]["step"], stopped=stopped,
                      wall_s=time.perf_counter() - tr.t0, stderr=stderr,
-                     extra={"optimizer": optimizer})
+                     extra={"optimizer": optimizer, "jacobian": jacobian})
 
 
 def _first_order(cal, z, tr, optimizer, learning_rate, max_steps, loss_tol) -> str:
@@ -255,22 +278,26 @@ def _first_order(cal, z, tr, optimizer, learning_rate, max_steps, loss_tol) -> s
     return "max_steps"
 
 
-def _residuals_at(cal, z):
-    J, (u, _) = cal.jacobian(z)
+def _residuals_at(jac, cal, z):
+    J, (u, _) = jac(z)
     r = total_residuals(cal.targets, cal.problem.times, u)
     return np.asarray(J, float), np.asarray(r, float)
 
 
-def _levenberg_marquardt(cal, z, tr, optimizer, learning_rate, max_steps, loss_tol) -> str:
-    """z ← z − (JᵀJ + μ diag JᵀJ)⁻¹ Jᵀr; a step that raises the loss is rejected (μ × 4),
-    an accepted one relaxes μ (÷ 3). Every step costs one Jacobian evaluation."""
-    J, r = _residuals_at(cal, z)
-    mu = 1e-3
+def _levenberg_marquardt(cal, z, tr, jac, max_steps, loss_tol, max_step=1.0) -> str:
+    """z ← z − (JᵀJ + μ diag JᵀJ)⁻¹ Jᵀr, the step capped at ``max_step`` in z (a trust
+    region: a factor e per unit for a log parameter); a step that raises the loss is
+    rejected (μ × 10), an accepted one relaxes μ (÷ 3). Every step costs one Jacobian
+    evaluation; a rejected step counts as a step."""
+    J, r = _residuals_at(jac, cal, z)
+    mu = 1e-2
     loss = float(r @ r)
+    trial = None
     for k in range(max_steps + 1):
         if not math.isfinite(loss):
             return f"non-finite loss at step {k}"
-        out = tr.record(k, z, loss, float(2 * np.linalg.norm(J.T @ r)), mu=mu)
+        out = tr.record(k, z, loss, float(2 * np.linalg.norm(J.T @ r)), mu=mu,
+                        trial_loss=trial)
         if loss <= loss_tol:
             return "loss_tol"
         if out:
@@ -278,15 +305,19 @@ def _levenberg_marquardt(cal, z, tr, optimizer, learning_rate, max_steps, loss_t
         if k == max_steps:
             return "max_steps"
         A = J.T @ J
-        step = -np.linalg.solve(A + mu * np.diag(np.diag(A)) + 1e-30 * np.eye(len(r) and
-                                                                          A.shape[0]), J.T @ r)
+        d = np.diag(A)
+        d = np.where(d > 0, d, max(float(d.max()), 1e-30) * 1e-12)
+        step = -np.linalg.solve(A + mu * np.diag(d), J.T @ r)
+        n = float(np.max(np.abs(step)))
+        if n > max_step:
+            step *= max_step / n
         z_try = z + jnp.asarray(step, cal.dtype)
-        J_try, r_try = _residuals_at(cal, z_try)
-        loss_try = float(r_try @ r_try)
-        if math.isfinite(loss_try) and loss_try < loss:
-            z, J, r, loss, mu = z_try, J_try, r_try, loss_try, max(mu / 3.0, 1e-9)
+        J_try, r_try = _residuals_at(jac, cal, z_try)
+        trial = float(r_try @ r_try)
+        if math.isfinite(trial) and trial < loss:
+            z, J, r, loss, mu = z_try, J_try, r_try, trial, max(mu / 3.0, 1e-9)
         else:
-            mu *= 4.0
+            mu *= 10.0
     return "max_steps"
 
 

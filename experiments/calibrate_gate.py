@@ -33,6 +33,23 @@ def rms_table(target, t, u):
     return out
 
 
+def save_fitted(args, case, best, E, out):
+    """The fitted values, with the data and window they were fitted to, in
+    calibrate/fitted/ (what a user applies: the scene keywords E and damping)."""
+    from calibrate import fitted
+    kw = dict(cases.GATE_COARSE) if args.resolution == "coarse" else {}
+    kw.update(E=E, damping=best["dem.damping"])
+    fitted.record(f"elastic_gate_{args.resolution}", {
+        "scene": "elastic_gate", "scene_kwargs": kw,
+        "fitted": {"stiffness_scale": best["stiffness"], "E_Pa": E,
+                   "damping_per_s": best["dem.damping"]},
+        "data": "fpsi_jax/data/antoci2007_gate_tip_displacement_experiment_consensus.csv "
+                "(tip u_x, u_y; consensus of two digitisations of Antoci et al. 2007)",
+        "window_s": [0.0, args.t_fit], "resolution": args.resolution,
+        "rms_fitted": out["rms_fitted"], "rms_defaults": out["rms_defaults"],
+        "by": "experiments/calibrate_gate.py"})
+
+
 def main(args):
     os.makedirs(OUT, exist_ok=True)
     t0 = time.perf_counter()
@@ -45,7 +62,7 @@ def main(args):
     tb, ub, _ = cases.evaluate(case, None, args.t_end, params=default)
     before = rms_table(target, tb, ub)
     print("defaults", json.dumps(before), flush=True)
-    res = fit(cal, max_steps=args.steps, rel_tol=1e-3, patience=3)
+    res = fit(cal, max_steps=args.steps, rel_tol=1e-3, patience=4, jacobian=args.jacobian)
     best = {k: res.best[k] for k in res.names}
     ta, ua, run = cases.evaluate(case, best, args.t_end)
     after = rms_table(target, ta, ua)
@@ -72,6 +89,7 @@ def main(args):
     else:
         extra = []
     name = f"calibrate_gate{'' if args.resolution == 'coarse' else '_seed'}"
+    save_fitted(args, case, best, E, out)
     with open(os.path.join(OUT, name + ".json"), "w") as fh:
         json.dump(out, fh, indent=1, default=float)
     np.savetxt(os.path.join(OUT, name + "_tip.csv"),
@@ -96,4 +114,6 @@ if __name__ == "__main__":
     ap.add_argument("--t-end", type=float, default=0.36)
     ap.add_argument("--steps", type=int, default=12)
     ap.add_argument("--seed-check", action="store_true")
+    ap.add_argument("--jacobian", default="fd", choices=["ad", "fd"],
+                    help="LM Jacobian: 'fd' secant (default here, see README) or 'ad'")
     main(ap.parse_args())
