@@ -132,6 +132,9 @@ def cantilever_damping(*, d=0.00125, zeta=0.05, periods=2.25, damping_start=2.0,
     return Case(Calibration(problem, space, [target]), meta)
 
 
+SCENE_OF = {"cantilever_synthetic": "cantilever", "cantilever_static": "cantilever",
+            "cantilever_damping": "cantilever", "elastic_gate": "elastic_gate"}
+
 CASES = {"cantilever_synthetic": cantilever_synthetic,
          "cantilever_static": cantilever_static,
          "cantilever_damping": cantilever_damping}

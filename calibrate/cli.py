@@ -37,8 +37,8 @@ def run(args) -> int:
     allowed = [n for n, q in sig.items() if q.kind == q.KEYWORD_ONLY]
     if any(q.kind == q.VAR_KEYWORD for q in sig.values()):      # the rest go to the scene
         from fpsi_jax import scenes
-        allowed += [k for k in scenes.builder_keys(args.case)
-                    if k not in allowed and k not in ("damping", "t_end")]
+        allowed += [k for k in scenes.builder_keys(cases.SCENE_OF[args.case])
+                    if k not in allowed and k not in ("damping", "t_end", "variant")]
     bad = [k for k in kw if k not in allowed]
     if bad:
         raise ParameterError(f"unknown key {bad[0]!r} for calibration case {args.case!r}; "
