@@ -10,6 +10,10 @@ over chunks whose body is wrapped in ``jax.checkpoint``: the reverse pass stores
 state per chunk and recomputes the inside of one chunk at a time, so with chunks of
 √n steps a gradient through n steps keeps ~2√n states instead of n (memory measured in
 ``experiments/calibration_cost.py``). The price is one extra forward pass.
+With ``remat_step=True`` each step inside a chunk is checkpointed as well: the backward
+pass of a chunk then keeps one *state* per step rather than every intermediate of every
+step (neighbour-pair arrays, DEM sub-steps), which is what bounds memory for the coupled
+gate; it costs a second recomputation of each step.
 """
 from __future__ import annotations
 
@@ -29,19 +33,31 @@ from fpsi_jax.state import STATUS_CODES, State
 
 
 def checkpointed_rollout(phys: Physics, state: State, params: Params, n_steps: int,
-                         observe: Callable[[State], object], chunk: int | None = None):
+                         observe: Callable[[State], object], chunk: int | None = None,
+                         remat_step: bool = False):
     """``n_steps`` steps as ⌊n/chunk⌋ checkpointed chunks plus a remainder; returns (final
-    state, observations stacked over all n steps). ``chunk`` defaults to ⌈√n⌉."""
+    state, observations stacked over all n steps). ``chunk`` defaults to ⌈√n⌉;
+    ``remat_step`` also checkpoints every single step (see module docstring)."""
     chunk = int(chunk or max(1, math.ceil(math.sqrt(n_steps))))
     n_outer, rem = divmod(int(n_steps), chunk)
+    step = jax.checkpoint(integrate.step, static_argnums=0) if remat_step else None
 
-    block = jax.checkpoint(lambda s, p: integrate.rollout(phys, s, p, chunk, observe))
+    def inner(s, p, n):
+        if step is None:
+            return integrate.rollout(phys, s, p, n, observe)
+
+        def body(c, _):
+            c = step(phys, c, p)
+            return c, (None if observe is None else observe(c))
+        return jax.lax.scan(body, s, None, length=n)
+
+    block = jax.checkpoint(lambda s, p: inner(s, p, chunk))
     obs = []
     if n_outer:
         state, o = jax.lax.scan(lambda s, _: block(s, params), state, None, length=n_outer)
         obs.append(jax.tree_util.tree_map(lambda a: a.reshape((-1,) + a.shape[2:]), o))
     if rem:
-        tail = jax.checkpoint(lambda s, p: integrate.rollout(phys, s, p, rem, observe))
+        tail = jax.checkpoint(lambda s, p: inner(s, p, rem))
         state, o = tail(state, params)
         obs.append(o)
     return state, jax.tree_util.tree_map(lambda *a: jnp.concatenate(a), *obs)
@@ -58,6 +74,7 @@ class Problem:
     n_steps  steps per rollout;  chunk  steps per checkpointed chunk
     observe  State → small pytree recorded every step
     dt       the time step as a Python float (the bound-checked value)
+    remat_step  checkpoint each step too (lower memory, one more recomputation)
     """
 
     scene: Scene
@@ -68,7 +85,7 @@ class Problem:
     chunk: int
     observe: Callable
     dt: float = 0.0
-
+    remat_step: bool = False
 
     @property
     def times(self) -> np.ndarray:
@@ -79,7 +96,7 @@ class Problem:
         """(final state, observations) for ``params``: pure, jittable, differentiable."""
         state = integrate.refresh_rates(self.phys, self.state0, params)
         return checkpointed_rollout(self.phys, state, params, self.n_steps, self.observe,
-                                    self.chunk)
+                                    self.chunk, self.remat_step)
 
     def regrown(self, final: State) -> "Problem":
         """The problem with neighbour lists large enough for what ``final`` overflowed."""
@@ -89,7 +106,8 @@ class Problem:
 
 def prepare(scene: Scene, t_end: float, observe: Callable, *, dt: float | None = None,
             params: Params | None = None, stiffest: Params | None = None,
-            chunk: int | None = None, **physics_overrides) -> Problem:
+            chunk: int | None = None, remat_step: bool = False,
+            **physics_overrides) -> Problem:
     """Make ``scene`` ready for gradients over ``t_end`` seconds.
 
     The time step (and the DEM sub-steps of a coupled scene) is derived for ``stiffest``
@@ -111,7 +129,7 @@ def prepare(scene: Scene, t_end: float, observe: Callable, *, dt: float | None =
     n = int(math.ceil(t_end / float(base.dt) - 1e-9))
     return Problem(scene=scene, phys=phys, state0=state, params=p, n_steps=n,
                    chunk=int(chunk or max(1, math.ceil(math.sqrt(n)))), observe=observe,
-                   dt=float(base.dt))
+                   dt=float(base.dt), remat_step=bool(remat_step))
 
 
 def check_status(final: State, dt: float) -> str | None:

@@ -2,6 +2,7 @@
 
     python experiments/calibration_cost.py                    # cantilever + coarse gate 0.2 s
     python experiments/calibration_cost.py --cases gate_seed  # the full 0.4 s gate, seed res.
+    python experiments/calibration_cost.py --cases gate_seed_remat  # ... every step remat
 
 For each case, in a fresh process each (so peak memory is that one computation's): the wall
 time of a forward rollout of the loss and of its reverse-mode gradient (both compiled
@@ -26,7 +27,10 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def build(case):
+    import dataclasses
+
     from calibrate import cases
+    from calibrate.fit import Calibration
     if case == "cantilever":          # K6.3.3's strip at the seed's d = 1.25 mm, 2 periods
         c = cases.cantilever_synthetic(d=0.00125, periods=2.0)
     elif case == "gate_coarse":
@@ -35,6 +39,11 @@ def build(case):
         c = cases.elastic_gate(resolution="coarse", t_fit=0.4)
     elif case == "gate_seed":
         c = cases.elastic_gate(resolution="seed", t_fit=0.4)
+    elif case.endswith("_remat"):        # the same with every step checkpointed too
+        c = build(case[:-len("_remat")])
+        cal = c.calibration
+        pr = dataclasses.replace(cal.problem, remat_step=True)
+        c = dataclasses.replace(c, calibration=Calibration(pr, cal.space, cal.targets))
     else:
         raise SystemExit(f"unknown case {case}")
     return c
@@ -83,7 +92,7 @@ def main(args):
     path = os.path.join(OUT, "calibration_cost.json")
     results = json.load(open(path)) if os.path.exists(path) else {}
     for case in args.cases:
-        rows = {}
+        rows = dict(results.get(case, {}))      # keep what other --what runs measured
         for what in args.what:
             env = dict(os.environ, PYTHONPATH=ROOT)
             p = subprocess.run([sys.executable, __file__, "--one", case, what], env=env,

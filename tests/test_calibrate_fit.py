@@ -30,12 +30,13 @@ def tip_problem(float64):
     return pr
 
 
-def test_checkpointed_rollout_equals_plain_rollout(tip_problem):
+@pytest.mark.parametrize("remat_step", [False, True])
+def test_checkpointed_rollout_equals_plain_rollout(tip_problem, remat_step):
     pr = tip_problem
     s0 = integrate.refresh_rates(pr.phys, pr.state0, pr.params)
     a, oa = jax.jit(lambda s: integrate.rollout(pr.phys, s, pr.params, 107, pr.observe))(s0)
     b, ob = jax.jit(lambda s: checkpointed_rollout(pr.phys, s, pr.params, 107, pr.observe,
-                                                   chunk=10))(s0)
+                                                   chunk=10, remat_step=remat_step))(s0)
     np.testing.assert_allclose(np.asarray(ob), np.asarray(oa), rtol=0, atol=1e-15)
     np.testing.assert_allclose(np.asarray(b.solid.x), np.asarray(a.solid.x), rtol=0, atol=1e-15)
 
