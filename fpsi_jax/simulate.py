@@ -66,9 +66,11 @@ class Result:
 
 
 def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
-          **physics_overrides):
+          unsafe_dt: bool = False, **physics_overrides):
     """Validate the scene and settings and return (Physics, Params with dt).
-    Every check happens here, before anything is compiled.
+    Every check happens here, before anything is compiled. ``unsafe_dt=True`` lets a ``dt``
+    above the stability bound through (stability stress tests only: the run may blow up,
+    and then stops with :class:`SimulationError` as any other).
 
     With fluid and discs together the step is multi-rate: ``dt`` is the SPH step (default:
     the SPH bound) and the discs take ``dem_substeps`` sub-steps of dt/n inside it, n the
@@ -88,7 +90,10 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
             dt = integrate.stable_dt(scene, params, substeps=n_sub)
     elif phys.has_fluid and phys.has_solid and not given:
         n_sub = integrate.substeps_for(scene, float(dt), params)
-    integrate.check_dt(scene, float(dt), params, substeps=n_sub)
+    if not unsafe_dt:
+        integrate.check_dt(scene, float(dt), params, substeps=n_sub)
+    elif not float(dt) > 0:
+        raise ParameterError(f"dt = {dt} out of range; allowed (0, inf) with unsafe_dt")
     phys = dataclasses.replace(phys, dem_substeps=n_sub)
     params = params.replace(dt=float(dt)).validate()
     if phys.x64:
@@ -133,19 +138,20 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
              every: float | None = None, progress: bool = True, dt: float | None = None,
              params: Params | None = None, observe: Callable | None = None,
              chunk_steps: int | None = None, state: State | None = None,
-             **physics_overrides) -> Result:
+             unsafe_dt: bool = False, **physics_overrides) -> Result:
     """Run ``scene`` to ``t_end`` (default scene.t_end) in compiled chunks.
 
     output      HDF5 path (an .xdmf sidecar is written next to it); None: no file
     every       seconds between frames (default t_end/100); also the chunk length
     dt          time step; default: the stability bound; larger than the bound is refused
+                unless ``unsafe_dt`` (stress tests)
     observe     state → small pytree recorded every step (returned stacked over steps)
     physics_overrides   Physics options (e.g. delta_sph=True, x64=True)
     """
     t_end = float(scene.t_end if t_end is None else t_end)
     if not t_end > 0:
         raise ParameterError(f"t_end = {t_end} out of range; allowed (0, inf)")
-    phys, params = setup(scene, dt, params, **physics_overrides)
+    phys, params = setup(scene, dt, params, unsafe_dt=unsafe_dt, **physics_overrides)
     dt = float(params.dt)
     p = params.as_arrays(integrate.dtype(phys))
     n_total = int(math.ceil(t_end / dt - 1e-9))

@@ -6,7 +6,7 @@ import inspect
 from ..params import ParameterError
 from .beams import bond_tension, cantilever, itasca_beam
 from .dam_break import dam_break
-from .dem_cases import collision, dry_dam_break, rolling
+from .dem_cases import collision, dry_dam_break, rolling, wall_impact
 from .fpi_cases import fpsi_failure, sedimentation, two_phase_dam_break
 from .fsi_cases import elastic_gate, gate_failure, hydrostatic_plate
 from .hydrostatic_tank import hydrostatic_tank
@@ -17,6 +17,7 @@ SCENES = {
     "collision": collision,
     "rolling": rolling,
     "dry_dam_break": dry_dam_break,
+    "wall_impact": wall_impact,
     "itasca_beam": itasca_beam,
     "cantilever": cantilever,
     "bond_tension": bond_tension,
