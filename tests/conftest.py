@@ -4,6 +4,8 @@ import sys
 import jax
 import pytest
 
+import fpsi_jax  # noqa: F401  (sets its XLA:CPU flag before any JAX backend starts)
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
