@@ -61,7 +61,7 @@ def dt_sweep(cases):
         sc = scenes.build(scene_name, **kw)
         t_end = t_end or sc.t_end
         t0 = time.perf_counter()
-        rows = stability.sweep(sc, t_end, FACTORS, dem=dem)
+        rows = stability.sweep(sc, t_end, FACTORS, dem=dem, refine=2)
         best = stability.largest_stable(rows)
         dt0, n0 = stability.derived(sc)
         out[name] = {"scene": scene_name, "kwargs": kw, "t_end": t_end, "derived_dt": dt0,
@@ -275,10 +275,20 @@ def main():
                     default=["dt", "stiffness", "tank10", "overlap", "impact", "break"])
     ap.add_argument("--cases", nargs="*", default=list(DT_CASES))
     ap.add_argument("--tank-dx", type=float, default=0.01)
+    ap.add_argument("--in-process", action="store_true",
+                    help="run the dt cases in this process (default: one fresh process per "
+                         "case; one long process that compiles hundreds of programs ran out "
+                         "of LLVM code memory)")
     a = ap.parse_args()
     for w in a.what:
-        if w == "dt":
+        if w == "dt" and (a.in_process or len(a.cases) == 1):
             dt_sweep(a.cases)
+        elif w == "dt":
+            import subprocess
+            import sys
+            for c in a.cases:
+                subprocess.run([sys.executable, os.path.abspath(__file__), "--what", "dt",
+                                "--cases", c], check=False)
         elif w == "stiffness":
             stiffness_map()
         elif w == "tank10":

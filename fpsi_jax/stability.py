@@ -108,16 +108,27 @@ def probe(scene: Scene, t_end: float, factor: float = 1.0, dem_factor: float | N
 
 
 def sweep(scene: Scene, t_end: float, factors=(0.5, 1, 1.5, 2, 3, 4, 6, 8), dem=False,
-          stop_after: int = 2, **opts) -> list[Probe]:
-    """Probes at increasing factors; stops after ``stop_after`` unstable ones in a row."""
+          stop_after: int = 2, refine: int = 0, **opts) -> list[Probe]:
+    """Probes at increasing factors; stops after ``stop_after`` unstable ones in a row.
+    ``refine`` > 0 then bisects between the largest stable factor and the first unstable one
+    that many times (so the blow-up threshold is known to a factor 2^-refine of that gap)."""
+    def one(f):
+        return probe(scene, t_end, dem_factor=f, **opts) if dem else probe(scene, t_end, f,
+                                                                          **opts)
     rows, bad = [], 0
     for f in sorted(factors):
-        p = probe(scene, t_end, dem_factor=f, **opts) if dem else probe(scene, t_end, f, **opts)
+        p = one(f)
         rows.append(p)
         bad = 0 if p.stable else bad + 1
         if bad >= stop_after:
             break
-    return rows
+    for _ in range(refine):
+        lo = largest_stable(rows)
+        hi = min((p.factor for p in rows if not p.stable and p.factor > lo), default=None)
+        if hi is None or lo == 0:
+            break
+        rows.append(one(0.5 * (lo + hi)))
+    return sorted(rows, key=lambda r: r.factor)
 
 
 def largest_stable(rows: list[Probe]) -> float:
