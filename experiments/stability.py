@@ -54,8 +54,13 @@ def save(section, data):
         json.dump(allr, fh, indent=1, default=float)
 
 
+def load(section):
+    path = os.path.join(OUT, "stability.json")
+    return json.load(open(path)).get(section, {}) if os.path.exists(path) else {}
+
+
 def dt_sweep(cases):
-    out = {}
+    out = load("dt")                       # other cases' rows are kept
     for name in cases:
         scene_name, kw, t_end, dem = DT_CASES[name]
         sc = scenes.build(scene_name, **kw)
