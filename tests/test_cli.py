@@ -14,6 +14,8 @@ from fpsi_jax import cli, io
     (["run", "dam_break", "--set", "kernel=gauss"], "kernel must be one of"),
     (["run", "dam_break", "--dt", "1"], "exceeds the stability bound"),
     (["run", "dam_break", "--t-end", "-1"], "t-end"),
+    (["run", "dam_break", "--unsafe-dt"], "--unsafe-dt needs --dt"),
+    (["run", "dam_break", "--dt", "-1", "--unsafe-dt"], "dt = -1.0 out of range"),
     (["validate", "nope"], "unknown validation case 'nope'"),
 ])
 def test_bad_input_exits_2_with_one_line(argv, word, tmp_path, capsys):
@@ -69,3 +71,18 @@ def test_bond_breaks_are_written(tmp_path):
     assert set(run.breaks["mode"]) == {1}                      # tension
     assert 0.49 < run.breaks["time"][0] < 0.51                 # F/A = σ̄c at t = ramp/2
     assert run.bonds["intact"][-1].sum() < run.bonds["intact"][0].sum()
+
+
+def test_unsafe_dt_runs_above_the_bound_and_stops_clearly_when_it_blows_up(tmp_path, capsys):
+    """--unsafe-dt lets a step past the bound through; far past it the run stops with the
+    diagnosis (exit 3) and the file keeps the good frames."""
+    from fpsi_jax import scenes
+    from fpsi_jax.simulate import setup
+    _, p = setup(scenes.build("hydrostatic_tank", dx=0.02))
+    dt = float(p.dt)
+    out = tmp_path / "t.h5"
+    base = ["run", "hydrostatic_tank", "--set", "dx=0.02", "--quiet", "--unsafe-dt"]
+    assert cli.main(base + ["--t-end", "0.05", "--dt", str(2 * dt)]) == 0
+    rc = cli.main(base + ["--t-end", "0.3", "--dt", str(12 * dt), "--out", str(out)])
+    assert rc == 3
+    assert "run unstable at step" in capsys.readouterr().err
