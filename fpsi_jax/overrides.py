@@ -49,6 +49,11 @@ def build(scene_name: str, overrides: dict, base: dict | None = None):
     phys_opts = {}
     params = scene.params
     for k, v in rest.items():
+        if k == "dt":                      # the step asked for; setup checks it
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0):
+                raise ParameterError(f"dt = {v!r} out of range; allowed (0, bound] s")
+            scene.dt = float(v)
+            continue
         if k in Physics.OPTIONS:
             phys_opts[k] = v
             continue

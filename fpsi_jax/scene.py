@@ -131,6 +131,8 @@ class Scene:
     v_max                the scene's velocity scale (c0 = 10 v_max, time-step bound)
     options              Physics overrides chosen by the builder (e.g. delta_sph)
     builder_kwargs       the physical parameters the builder was called with (for output)
+    dt                   the time step asked for (``--set dt=…``); None: derived from the
+                         stability bounds (simulate's own ``dt`` argument wins over both)
     """
 
     name: str
@@ -146,6 +148,7 @@ class Scene:
     t_end: float = 1.0
     options: dict = field(default_factory=dict)
     builder_kwargs: dict = field(default_factory=dict)
+    dt: float | None = None
 
     def validate(self) -> "Scene":
         """Check shapes, finiteness and that every particle lies inside the domain."""
@@ -230,7 +233,8 @@ class Scene:
         return json.dumps({
             "name": self.name, "builder_kwargs": _jsonable(self.builder_kwargs),
             "domain_lo": list(self.domain_lo), "domain_hi": list(self.domain_hi),
-            "v_max": self.v_max, "t_end": self.t_end, "options": _jsonable(self.options),
+            "v_max": self.v_max, "t_end": self.t_end, "dt_requested": self.dt,
+            "options": _jsonable(self.options),
             "n_fluid": self.fluid.n if self.fluid else 0,
             "n_boundary": self.boundary.n if self.boundary else 0,
             "n_solid": self.solid.n if self.solid else 0,

@@ -82,6 +82,7 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
     opts = {**scene.options, **physics_overrides}
     given = opts.get("dem_substeps") is not None
     n_sub = int(opts["dem_substeps"]) if given else 1
+    dt = scene.dt if dt is None else dt
     if dt is None:
         if phys.has_fluid and phys.has_solid and not given:
             dt = integrate.sph_dt(scene, params)

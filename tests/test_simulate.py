@@ -39,3 +39,19 @@ def test_simulate_writes_frames_and_reports_speed(tmp_path, tiny_tank):
     assert run.fluid["x"].shape == (frames, tiny_tank.fluid.n, 2)
     assert run.status == "finished"
     assert res.n_steps > 0 and res.wall_s > 0
+
+
+def test_dt_override_is_honoured_and_checked():
+    """``--set dt=…`` (overrides.build) sets the step the run uses; above the bound it is
+    refused; simulate's own dt argument wins over it."""
+    from fpsi_jax import overrides
+    from fpsi_jax.params import ParameterError
+    from fpsi_jax.simulate import setup
+    sc, ph = overrides.build("hydrostatic_tank", {"dt": 1e-5, "dx": 0.02})
+    assert float(setup(sc, **ph)[1].dt) == pytest.approx(1e-5)
+    assert float(setup(sc, 2e-5, **ph)[1].dt) == pytest.approx(2e-5)
+    sc, ph = overrides.build("hydrostatic_tank", {"dt": 1.0, "dx": 0.02})
+    with pytest.raises(ParameterError, match="exceeds the stability bound"):
+        setup(sc, **ph)
+    with pytest.raises(ParameterError, match="dt = -1"):
+        overrides.build("hydrostatic_tank", {"dt": -1})
