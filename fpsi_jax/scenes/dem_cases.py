@@ -101,7 +101,7 @@ def wall_impact(*, radius=0.005, rho=2700.0, speed=10.0, kn=1.0e8, beta=0.1, ang
     v = speed * np.array([[math.sin(a), -math.cos(a)]])
     blk = disc_block(np.array([[0.05, radius + gap]]), radius, rho, v=v)
     tc = math.pi / math.sqrt(kn / blk.mass[0] * (1 - beta ** 2))
-    t_end = gap / speed + 3 * tc if t_end is None else t_end
+    t_end = gap / (speed * math.cos(a)) + 3 * tc if t_end is None else t_end   # normal approach
     walls = WallBlock(a=np.array([[0.0, 0.0]]), b=np.array([[0.1 + speed * t_end, 0.0]]))
     return Scene(
         name="wall_impact", params=Params(gravity=(0.0, 0.0),
