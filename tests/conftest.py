@@ -48,8 +48,11 @@ def step_hlo():
         text = jax.jit(integrate.step, static_argnums=0).lower(phys, st, p).as_text(
             debug_info=True)
         scopes = set()
-        for loc in re.findall(r'loc\("(jit\(step\)/[^"]*)"', text):
-            scopes.update(loc.split("/"))
+        # absolute ("jit(step)/dem.contacts/...") and, inside loops such as the DEM
+        # sub-steps, relative ("dem.contacts/...") op locations
+        for loc in re.findall(r'loc\("([^"]*/[^"]*)"', text):
+            if not loc.endswith(".py"):
+                scopes.update(loc.split("/"))
         files = {os.path.basename(f) for f in re.findall(r'loc\("([^"]+\.py)"', text)}
         return text, scopes, files
 

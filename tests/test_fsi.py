@@ -255,3 +255,12 @@ def test_bad_coupling_is_refused_before_compiling():
         scenes.build("elastic_gate", gap=-0.001)
     with pytest.raises(ParameterError, match="fsi"):
         Physics.for_scene(_coarse_plate(), fsi="glue")
+
+
+def test_multirate_step_hlo_shows_the_dem_substep_mechanisms(step_hlo):
+    """In a coupled scene the DEM forces sit inside the sub-step loop, whose op locations
+    are relative ("bonds/..."): the HLO fixture must see them, or an absence test on a
+    coupled scene would pass whether the mechanism is compiled or not."""
+    _, scopes, _ = step_hlo(_coarse_plate())
+    assert {"dem.contacts", "bonds", "integrate.dem_substeps", "fsi.extrapolated"} <= scopes
+    assert "dem.walls" not in scopes                 # the plate has no DEM walls
