@@ -74,8 +74,12 @@ def pairs(kern, n_fluid, x, v, h, m, rho, idx) -> Pairs:
 
 def continuity(rho_i, pr: Pairs):
     """Dρ_i/Dt = ρ_i Σ_j (m_j/ρ_j) v_ij·∇_iW_ij (K32)."""
-    vdotx_f = jnp.sum(pr.vij * pr.dx, axis=-1) * pr.f
-    return rho_i * jnp.sum(pr.m_j / pr.rho_j * vdotx_f, axis=1)
+    return rho_i * jnp.sum(continuity_pairs(pr), axis=1)
+
+
+def continuity_pairs(pr: Pairs):
+    """Pair terms (m_j/ρ_j) v_ij·∇_iW_ij of :func:`continuity` (without the factor ρ_i)."""
+    return pr.m_j / pr.rho_j * jnp.sum(pr.vij * pr.dx, axis=-1) * pr.f
 
 
 def delta_diffusion(delta, c0, rho_i, pr: Pairs, diffused=None):
@@ -83,10 +87,15 @@ def delta_diffusion(delta, c0, rho_i, pr: Pairs, diffused=None):
     ψ_ij = 2(ρ_j − ρ_i) x_ji/(r² + 0.01h²); applied to fluid–fluid pairs only.
     ``diffused`` = (ρ_i, ρ_j) diffuses another density than the one of the volumes m_j/ρ_j
     (with grains: the intrinsic ρ, while the volumes use ερ)."""
+    return jnp.sum(delta_pairs(delta, c0, rho_i, pr, diffused), axis=1)
+
+
+def delta_pairs(delta, c0, rho_i, pr: Pairs, diffused=None):
+    """Pair terms of :func:`delta_diffusion`."""
     d_i, d_j = (rho_i, pr.rho_j) if diffused is None else diffused
     s = (2.0 * (d_j - d_i[:, None]) * (-pr.r2 * pr.f)
          / (pr.r2 + 0.01 * pr.hij ** 2) * pr.m_j / pr.rho_j)
-    return delta * c0 * jnp.sum(jnp.where(pr.fluid_j, pr.hij * s, 0.0), axis=1)
+    return delta * c0 * jnp.where(pr.fluid_j, pr.hij * s, 0.0)
 
 
 def pressure_pairs(m_j, coef, dx, f):
@@ -166,17 +175,20 @@ def density_rate(phys, sp, rho_i, pr: Pairs, eps=None, rho_intrinsic=None):
     """Dρ/Dt of the fluid rows: continuity (K32) plus δ-SPH diffusion when switched on.
     With grains ``rho_i`` is ερ (W42) and δ-SPH diffuses the intrinsic ρ (``rho_intrinsic``,
     all particles), scaled by ε_i: it damps pressure noise without smearing the voidage."""
+    if not phys.delta_sph:
+        with jax.named_scope("sph.continuity"):
+            return continuity(rho_i, pr)
     with jax.named_scope("sph.continuity"):
-        drho = continuity(rho_i, pr)
-    if phys.delta_sph:
-        with jax.named_scope("sph.delta"):
-            if eps is None:
-                drho = drho + delta_diffusion(sp.delta, sp.c0, rho_i, pr)
-            else:
-                rows = rho_i.shape[0]
-                diffused = (rho_intrinsic[:rows], gather(rho_intrinsic, pr.idx))
-                drho = drho + eps * delta_diffusion(sp.delta, sp.c0, rho_i, pr, diffused)
-    return drho
+        cont = continuity_pairs(pr)
+    with jax.named_scope("sph.delta"):
+        diffused = None
+        if eps is not None:
+            rows = rho_i.shape[0]
+            diffused = (rho_intrinsic[:rows], gather(rho_intrinsic, pr.idx))
+        # both sums in one reduction over the neighbour axis (one loop for XLA)
+        both = jnp.sum(jnp.stack([cont, delta_pairs(sp.delta, sp.c0, rho_i, pr, diffused)],
+                                 axis=-1), axis=1)
+        return rho_i * both[:, 0] + (1.0 if eps is None else eps) * both[:, 1]
 
 
 def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, eps=None):
