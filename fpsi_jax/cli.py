@@ -125,7 +125,7 @@ def cmd_run(args):
     t_end = scene.t_end if args.t_end is None else args.t_end
     if not t_end > 0:
         raise ParameterError(f"--t-end = {t_end} out of range; allowed (0, inf)")
-    unsafe = bool(getattr(args, "unsafe_dt", False))
+    unsafe = args.unsafe_dt
     if unsafe and args.dt is None:
         raise ParameterError("--unsafe-dt needs --dt")
     setup(scene, args.dt, unsafe_dt=unsafe, **phys)    # every check before compiling

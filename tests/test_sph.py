@@ -85,7 +85,7 @@ def ref_terms(i, nbrs, x, v, h, m, rho_old, rho, p, n_fluid, sp, anticlump_bound
             mu_ij = pr.h * vx / (pr.r2 + 0.01 * pr.h ** 2)
             Pi = -sp["alpha"] * sp["c0"] * mu_ij / (0.5 * (rho[i] + rho[j]))
             out["av"] += -m[j] * Pi * pr.gradw
-        # XSPH (K39, Monaghan 1989), over fluid neighbours only (sph.xsph_correction: the
+        # XSPH (K39, Monaghan 1989), over fluid neighbours only (sph.xsph_pairs: the
         # v = 0 boundary particles would pull the transport velocity to zero at a wall)
         if fluid_j:
             out["xsph"] += -sp["eps_xsph"] * m[j] / (0.5 * (rho[i] + rho[j])) * pr.w * pr.vij

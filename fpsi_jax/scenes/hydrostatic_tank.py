@@ -23,9 +23,9 @@ def hydrostatic_tank(*, depth=0.3, width=0.3, dx=0.005, dx_boundary=None, h_fact
     h = 1.5 Δx by default (the seed's dam break uses 1.25 Δx; DualSPHysics' default
     h = coefh·√2·Δx with coefh 1.0–1.2 gives 1.4–1.7 Δx). With 1.25 Δx the square lattice
     next to the floor goes unstable at t ≈ 0.25 s, bottom particles rearrange and a plume
-    rises: max |v| 3.8 % of √(gH) at Δx 10 mm and 2.7 % at the end of 2 s at 5 mm. With
+    rises: at 5 mm max |v| reaches 4.5 % of √(gH) (t = 0.56 s) and is 1.2 % at 2 s. With
     1.5 Δx (≈ 28 instead of 20 neighbours) it stays at rest: 0.73 % throughout and 0.33 %
-    at 2 s at 5 mm (experiments/hydrostatic_tank_h.py; not a fit to the reference).
+    at 2 s (experiments/hydrostatic_tank_h.py; not a fit to the reference).
     """
     check_positive(depth=depth, width=width, dx=dx, h_factor=h_factor, rho0=rho0)
     dxb = dx if dx_boundary is None else dx_boundary
