@@ -33,16 +33,20 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results")
 GATE_COARSE = {"dx": 0.0035, "d": 0.0025, "dx_boundary": 0.0025, "h0": 0.004375}
 
-# case: (scene, builder keywords, t_end, sweep the DEM sub-step instead of the step)
+# case: (scene, builder keywords, t_end, sweep the DEM sub-step instead of the step,
+#        speed limit or None for the probe's default 10 × the velocity scale)
+# The wall impact's limit is its impact speed: a damped contact that sends the grain back
+# faster than it came has created energy (at 3 × the derived step the rebound is 1.6 × the
+# impact speed, finite but wrong), which counts as unstable.
 DT_CASES = {
-    "hydrostatic_tank": ("hydrostatic_tank", {"dx": 0.01}, 1.0, False),
-    "dam_break": ("dam_break", {"dx": 0.01}, 0.4, False),
-    "cantilever_free": ("cantilever", {"d": 0.0025, "variant": "free"}, 0.03, False),
-    "dry_dam_break": ("dry_dam_break", {}, 0.2, False),
-    "wall_impact_10ms": ("wall_impact", {"speed": 10.0}, None, False),
-    "elastic_gate_dem": ("elastic_gate", GATE_COARSE, 0.1, True),
+    "hydrostatic_tank": ("hydrostatic_tank", {"dx": 0.01}, 1.0, False, None),
+    "dam_break": ("dam_break", {"dx": 0.01}, 0.4, False, None),
+    "cantilever_free": ("cantilever", {"d": 0.0025, "variant": "free"}, 0.03, False, None),
+    "dry_dam_break": ("dry_dam_break", {}, 0.2, False, None),
+    "wall_impact_10ms": ("wall_impact", {"speed": 10.0}, None, False, 10.0 * 1.001),
+    "elastic_gate_dem": ("elastic_gate", GATE_COARSE, 0.1, True, None),
 }
-FACTORS = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 6.0, 8.0)
+FACTORS = (0.5, 1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 4.0)
 
 
 def save(section, data):
@@ -62,17 +66,20 @@ def load(section):
 def dt_sweep(cases):
     out = load("dt")                       # other cases' rows are kept
     for name in cases:
-        scene_name, kw, t_end, dem = DT_CASES[name]
+        scene_name, kw, t_end, dem, v_limit = DT_CASES[name]
         sc = scenes.build(scene_name, **kw)
         t_end = t_end or sc.t_end
         t0 = time.perf_counter()
-        rows = stability.sweep(sc, t_end, FACTORS, dem=dem, refine=2)
+        rows = stability.sweep(sc, t_end, FACTORS, dem=dem, refine=3, v_limit=v_limit)
         best = stability.largest_stable(rows)
         dt0, n0 = stability.derived(sc)
         out[name] = {"scene": scene_name, "kwargs": kw, "t_end": t_end, "derived_dt": dt0,
                      "derived_dem_substeps": n0, "swept": "DEM sub-step" if dem else "dt",
                      "largest_stable_factor": best,
-                     "derived_is_stable": any(p.stable for p in rows if p.factor == 1.0),
+                     # factor ≤ 1: the derived step itself (a DEM sweep's derived sub-step
+                     # count lands at a factor just under 1)
+                     "derived_is_stable": (any(p.factor <= 1.0 + 1e-9 for p in rows) and all(
+                         p.stable for p in rows if p.factor <= 1.0 + 1e-9)),
                      "within_factor_2": 0 < best <= 2.0 + 1e-9 or best == 0,
                      "rows": [p.as_dict() for p in rows], "wall_s": time.perf_counter() - t0}
         print(f"{name:20s} derived dt {dt0:.3g} s (×{n0})  largest stable factor {best}  "
@@ -94,7 +101,7 @@ def stiffness_map():
         for s in (0.01, 0.1, 1.0, 10.0, 100.0):
             sc = scenes.build(scene_name, **{**kw, key: base * s})
             te = t_end or min(sc.t_end, 0.02)
-            probes = stability.sweep(sc, te, (1.0, 1.5, 2.0, 3.0, 4.0, 6.0))
+            probes = stability.sweep(sc, te, (1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0))
             rows.append({"scale": s, key: base * s, "derived_dt": stability.derived(sc)[0],
                          "largest_stable_factor": stability.largest_stable(probes),
                          "probes": [p.as_dict() for p in probes]})

@@ -515,10 +515,19 @@ def _grains(scene: Scene):
     return scene.solid.grain_indices()
 
 
+# Step coefficients (issue 7). physics.md quotes 0.25 h/(c0+|v|) and 0.2 √(m/k); the sweeps
+# of experiments/stability.py found those 5–6.5× below the step where the runs actually blow
+# up (leapfrog's acoustic limit is ≈ 1.4–1.7 h/c0 here; a bonded or packed DEM assembly
+# ≈ 1.0 √(m/k)), so they were needlessly small. The coefficients below keep a measured
+# margin of 1.5–2 on every swept case; the force and viscous bounds are physics.md's.
+SPH_CFL = 0.875
+DEM_DT_FACTOR = 0.55
+
+
 def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
-    """SPH bound (physics.md §Time integration): Δt ≤ min(0.25 h/(c0 + |v|max),
-    0.125 h²/ν, 0.25 √(h/|a|max)), h the smallest smoothing length, |v|max the scene's
-    velocity scale and |a|max = max(|g|, a_max).
+    """SPH bound (physics.md §Time integration, acoustic coefficient SPH_CFL instead of
+    0.25): Δt ≤ min(SPH_CFL h/(c0 + |v|max), 0.125 h²/ν, 0.25 √(h/|a|max)), h the smallest
+    smoothing length, |v|max the scene's velocity scale and |a|max = max(|g|, a_max).
 
     With grains in the fluid (fpi) the sound speed in ερ is c0/√ε, so c0/√ε_lo replaces c0,
     ε_lo = max(EPS_MIN, 1 − n_grain V_p,max W(0)) the least voidage the grains can make (3D
@@ -550,18 +559,15 @@ def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
         rate = (150.0 * (1 - e) * float(sp.mu) / (e * d * d)
                 + 1.75 * float(sp.rho0) * scene.v_max / d) / rho_p
         bounds.append(0.5 / float(np.max(rate)))
-    bounds += [0.25 * h / (c + scene.v_max), 0.25 * np.sqrt(h / acc)]
+    bounds += [SPH_CFL * h / (c + scene.v_max), 0.25 * np.sqrt(h / acc)]
     if nu > 0:
         bounds.append(0.125 * h * h / nu)
     return float(min(bounds))
 
 
-DEM_DT_FACTOR = 0.2
-
-
 def dem_dt(scene: Scene, params: Params, section: str = "slab") -> float:
-    """DEM bound (physics.md §Time integration): Δt ≤ 0.2 √(m_min/k_max), and the same for
-    rotation, 0.2 √(J_min/k_rot). k_max adds the contact spring and the stiffest bond
+    """DEM bound (physics.md §Time integration, coefficient DEM_DT_FACTOR instead of 0.2):
+    Δt ≤ DEM_DT_FACTOR √(m_min/k_max), and the same for rotation, √(J_min/k_rot). k_max adds the contact spring and the stiffest bond
     (k̄ A); k_rot = k̄_n I + (k̄_s A + k_s) R_max² for the stiffest bond."""
     so, dp, bp = scene.solid, params.dem, params.bond
     free = ~np.asarray(so.fixed, bool)
@@ -619,5 +625,6 @@ def check_dt(scene: Scene, dt: float, params: Params | None = None, substeps: in
         sub = f" with dem_substeps = {substeps}" if substeps > 1 else ""
         raise ParameterError(
             f"dt = {dt:.4g} s exceeds the stability bound {bound:.4g} s{sub} "
-            "(SPH: 0.25 h/(c0+|v|max), 0.125 h²/ν, 0.25 √(h/|a|max); DEM: 0.2 √(m/k) per "
+            f"(SPH: {SPH_CFL:g} h/(c0+|v|max), 0.125 h²/ν, 0.25 √(h/|a|max); "
+            f"DEM: {DEM_DT_FACTOR:g} √(m/k) per "
             f"sub-step); allowed (0, {bound:.4g}] s")

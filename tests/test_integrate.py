@@ -70,7 +70,7 @@ def test_user_dt_above_bound_is_refused_with_the_bound(tiny_tank):
 def test_stable_dt_is_the_minimum_of_the_bounds(tiny_tank):
     sp = tiny_tank.params.sph
     h = float(tiny_tank.fluid.h.min())
-    acoustic = 0.25 * h / (sp.c0 + tiny_tank.v_max)
+    acoustic = integrate.SPH_CFL * h / (sp.c0 + tiny_tank.v_max)
     viscous = 0.125 * h * h / (sp.mu / sp.rho0)
     force = 0.25 * np.sqrt(h / 9.81)
     assert integrate.stable_dt(tiny_tank) == pytest.approx(min(acoustic, viscous, force))

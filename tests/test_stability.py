@@ -58,7 +58,7 @@ def test_grain_hits_wall_at_10_m_per_s():
     overlap = r - y.min()
     assert 0 < overlap < 10.0 * math.sqrt(m / k) * 1.05
     assert overlap < 0.5 * r
-    fine = simulate(sc, progress=False, dt=0.25 * float(res.params.dt))
+    fine = simulate(sc, progress=False, dt=0.1 * float(res.params.dt))
     assert float(fine.state.solid.v[0, 1]) / 10.0 == pytest.approx(e_ref, rel=0.01)
 
 
@@ -117,7 +117,7 @@ def test_oblique_impact_keeps_the_tangential_speed():
     beta = float(sc.params.dem.beta_n)
     e_ref = math.exp(-math.pi * beta / math.sqrt(1 - beta ** 2))
     _, p = setup(sc)
-    res = simulate(sc, progress=False, dt=0.25 * float(p.dt))
+    res = simulate(sc, progress=False, dt=0.1 * float(p.dt))
     v = np.asarray(res.state.solid.v[0])
     vn, vt = 10.0 * math.cos(math.radians(45)), 10.0 * math.sin(math.radians(45))
     assert v[1] / vn == pytest.approx(e_ref, rel=0.01)
