@@ -45,6 +45,8 @@ DT_CASES = {
     "dry_dam_break": ("dry_dam_break", {}, 0.2, False, None),
     "wall_impact_10ms": ("wall_impact", {"speed": 10.0}, None, False, 10.0 * 1.001),
     "elastic_gate_dem": ("elastic_gate", GATE_COARSE, 0.1, True, None),
+    "elastic_gate_sph": ("elastic_gate", GATE_COARSE, 0.1, False, None),
+    "sedimentation": ("sedimentation", {}, 0.3, False, None),
 }
 FACTORS = (0.5, 1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 4.0)
 

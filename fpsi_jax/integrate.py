@@ -519,14 +519,34 @@ def _grains(scene: Scene):
 # of experiments/stability.py found those 5–6.5× below the step where the runs actually blow
 # up (leapfrog's acoustic limit is ≈ 1.4–1.7 h/c0 here; a bonded or packed DEM assembly
 # ≈ 1.0 √(m/k)), so they were needlessly small. The coefficients below keep a measured
-# margin of 1.5–2 on every swept case; the force and viscous bounds are physics.md's.
+# margin of 1.8–1.9 on every swept case (a single contact: 2.9); the force and viscous
+# bounds are physics.md's.
+#
+# Except in a structure coupled to the fluid (option fsi): there the DEM sub-step keeps
+# physics.md's 0.2. Sub-steps at 0.55 are stable (a margin of 1.7 on the coarse elastic gate)
+# but not accurate: under the SPH step's held fluid force the coarse gate's peak rose from
+# 38.9 mm (converged: halving both steps changes it by 0.01 mm) to 44.0 mm (+13 %); at 0.3,
+# 39.7 (+1.9 %); at 0.2, 39.4 (+1.3 %); at 0.1, 39.1 (+0.4 %). The DEM sub-steps cost little
+# next to the SPH step, so the accuracy is bought there.
+#
+# The coupled SPH step is less stable too: the coarse gate's fluid blew up at 1.31 × the
+# 0.875 step (density out of band), against 1.8–1.9 × in the fluid-only cases, so a scene
+# with option fsi takes FSI_SPH_CFL = 0.6 (a margin of about 1.9 there).
 SPH_CFL = 0.875
+FSI_SPH_CFL = 0.6
 DEM_DT_FACTOR = 0.55
+FSI_DEM_DT_FACTOR = 0.2
+
+
+def _fsi_coupled(scene: Scene) -> bool:
+    return (scene.fluid is not None and scene.solid is not None
+            and scene.options.get("fsi") is not None)
 
 
 def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
-    """SPH bound (physics.md §Time integration, acoustic coefficient SPH_CFL instead of
-    0.25): Δt ≤ min(SPH_CFL h/(c0 + |v|max), 0.125 h²/ν, 0.25 √(h/|a|max)), h the smallest
+    """SPH bound (physics.md §Time integration, acoustic coefficient SPH_CFL, or FSI_SPH_CFL
+    with option fsi, instead of 0.25): Δt ≤ min(CFL h/(c0 + |v|max), 0.125 h²/ν,
+    0.25 √(h/|a|max)), h the smallest
     smoothing length, |v|max the scene's velocity scale and |a|max = max(|g|, a_max).
 
     With grains in the fluid (fpi) the sound speed in ερ is c0/√ε, so c0/√ε_lo replaces c0,
@@ -559,15 +579,17 @@ def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
         rate = (150.0 * (1 - e) * float(sp.mu) / (e * d * d)
                 + 1.75 * float(sp.rho0) * scene.v_max / d) / rho_p
         bounds.append(0.5 / float(np.max(rate)))
-    bounds += [SPH_CFL * h / (c + scene.v_max), 0.25 * np.sqrt(h / acc)]
+    cfl = FSI_SPH_CFL if _fsi_coupled(scene) else SPH_CFL
+    bounds += [cfl * h / (c + scene.v_max), 0.25 * np.sqrt(h / acc)]
     if nu > 0:
         bounds.append(0.125 * h * h / nu)
     return float(min(bounds))
 
 
 def dem_dt(scene: Scene, params: Params, section: str = "slab") -> float:
-    """DEM bound (physics.md §Time integration, coefficient DEM_DT_FACTOR instead of 0.2):
-    Δt ≤ DEM_DT_FACTOR √(m_min/k_max), and the same for rotation, √(J_min/k_rot). k_max adds the contact spring and the stiffest bond
+    """DEM bound (physics.md §Time integration, coefficient DEM_DT_FACTOR instead of 0.2, or
+    FSI_DEM_DT_FACTOR = 0.2 in a scene with option fsi, see above):
+    Δt ≤ factor √(m_min/k_max), and the same for rotation, factor √(J_min/k_rot). k_max adds the contact spring and the stiffest bond
     (k̄ A); k_rot = k̄_n I + (k̄_s A + k_s) R_max² for the stiffest bond."""
     so, dp, bp = scene.solid, params.dem, params.bond
     free = ~np.asarray(so.fixed, bool)
@@ -587,7 +609,7 @@ def dem_dt(scene: Scene, params: Params, section: str = "slab") -> float:
     bound = np.sqrt(m / k)
     if k_rot > 0:
         bound = min(bound, np.sqrt(J / k_rot))
-    bound = DEM_DT_FACTOR * bound
+    bound = (FSI_DEM_DT_FACTOR if _fsi_coupled(scene) else DEM_DT_FACTOR) * bound
     c = float(getattr(dp, "damping", 0.0))
     if c > 0:                      # the lagged viscous term is stable for c·Δt < 2; keep ≤ 0.5
         bound = min(bound, 0.5 / c)
@@ -625,6 +647,8 @@ def check_dt(scene: Scene, dt: float, params: Params | None = None, substeps: in
         sub = f" with dem_substeps = {substeps}" if substeps > 1 else ""
         raise ParameterError(
             f"dt = {dt:.4g} s exceeds the stability bound {bound:.4g} s{sub} "
-            f"(SPH: {SPH_CFL:g} h/(c0+|v|max), 0.125 h²/ν, 0.25 √(h/|a|max); "
-            f"DEM: {DEM_DT_FACTOR:g} √(m/k) per "
+            f"(SPH: {SPH_CFL:g} h/(c0+|v|max), {FSI_SPH_CFL:g} with fsi, 0.125 h²/ν, "
+            "0.25 √(h/|a|max); "
+            f"DEM: {DEM_DT_FACTOR:g} √(m/k), {FSI_DEM_DT_FACTOR:g} √(m/k) coupled to "
+            "the fluid, per "
             f"sub-step); allowed (0, {bound:.4g}] s")

@@ -13,8 +13,9 @@ is blowing up but has not reached a NaN yet). Nothing here hides a failure: an u
 probe records the driver's diagnosis (step, time, particle, quantity).
 
 ``factor`` multiplies the derived step of the whole scene; in a coupled scene (fluid and
-discs, multi-rate) ``dem_factor`` multiplies the DEM sub-step instead (the SPH step is kept,
-the number of sub-steps divided).
+discs, multi-rate) it multiplies the SPH step and the number of DEM sub-steps grows with it
+(the sub-step stays at most its derived size), and ``dem_factor`` multiplies the DEM sub-step
+instead (the SPH step is kept, the number of sub-steps divided).
 """
 from __future__ import annotations
 
@@ -73,8 +74,8 @@ def probe(scene: Scene, t_end: float, factor: float = 1.0, dem_factor: float | N
     else:
         dt = factor * dt0
         f = factor
-        if scene.fluid is not None and scene.solid is not None:
-            kw["dem_substeps"] = n0
+        if scene.fluid is not None and scene.solid is not None:   # DEM sub-step kept
+            kw["dem_substeps"] = max(1, int(math.ceil(n0 * factor - 1e-9)))
     v_scale = max(float(scene.v_max or 0.0), 1e-3)
     v_limit = 10.0 * v_scale if v_limit is None else v_limit
     t0 = time.perf_counter()
