@@ -48,7 +48,7 @@ DT_CASES = {
     "elastic_gate_sph": ("elastic_gate", GATE_COARSE, 0.1, False, None),
     "sedimentation": ("sedimentation", {}, 0.3, False, None),
 }
-FACTORS = (0.5, 1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 4.0)
+FACTORS = (0.5, 1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0)
 
 
 def save(section, data):
