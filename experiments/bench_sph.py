@@ -25,9 +25,16 @@ from _bench import compile_and_warm_up
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-def bench(dx, steps, **phys_opts):
+def bench(dx, steps, old_step=False, **phys_opts):
+    """``old_step``: physics.md's 0.25 h/(c0+|v|) and the 0.25 h skin that went with it (the
+    figures before issue 7 changed the step to 0.875 h/(c0+|v|) and the skin to 0.4 h)."""
     sc = scenes.build("dam_break", dx=dx)
-    phys, params = setup(sc, **phys_opts)
+    if old_step:
+        _, p0 = setup(sc, **phys_opts)
+        phys_opts = {"skin": 0.25, **phys_opts}
+        phys, params = setup(sc, float(p0.dt) * 0.25 / integrate.SPH_CFL, **phys_opts)
+    else:
+        phys, params = setup(sc, **phys_opts)
     p = params.as_arrays(jnp.float32)
     st = integrate.init_state(sc, phys, p)
     # warm up into the flow (the column has started to move) before timing; lists grown
@@ -54,19 +61,25 @@ def bench(dx, steps, **phys_opts):
             "wall_s": wall, "compile_s": compile_s,
             "particle_steps_per_s": n * steps / wall,
             "fluid_particle_steps_per_s": sc.fluid.n * steps / wall,
-            "rebuilds": int(st.status.rebuilds) - r0, "mechanisms": list(phys.mechanisms())}
+            "rebuilds": int(st.status.rebuilds) - r0, "dt": float(params.dt),
+            "skin_over_h": float(phys.neighbors.skin / sc.fluid.h.min()),
+            "old_step": old_step, "mechanisms": list(phys.mechanisms())}
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--dx", type=float, nargs="*", default=[0.0029, 0.00145, 0.00072])
+    ap.add_argument("--no-old-step", action="store_true",
+                    help="skip the rows at physics.md's step (0.25 h/(c0+|v|), skin 0.25 h)")
     args = ap.parse_args()
     rows = []
-    for dx in args.dx:
-        r = bench(dx, args.steps)
+    for dx, old in [(dx, old) for old in ((False,) if args.no_old_step else (False, True))
+                    for dx in args.dx]:
+        r = bench(dx, args.steps, old_step=old)
         rows.append(r)
-        print(f"dx={dx * 1e3:.2f} mm  N={r['n_particles']:6d}  K={r['neighbour_capacity']}  "
+        print(f"{'old step ' if old else ''}"
+              f"dx={dx * 1e3:.2f} mm  N={r['n_particles']:6d}  K={r['neighbour_capacity']}  "
               f"{r['particle_steps_per_s'] / 1e6:.2f} M particle-steps/s  "
               f"rebuilds {r['rebuilds']}/{args.steps}  compile {r['compile_s']:.1f} s",
               flush=True)

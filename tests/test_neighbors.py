@@ -19,10 +19,11 @@ def squeezed_block():
 
 
 def test_overflow_is_redone_and_equals_a_large_allocation():
+    # a thin skin (0.1 h), so the compression outgrows the list within the 24 steps
     tight = simulate(squeezed_block(), progress=False, capacity_multiplier=1.0,
-                     chunk_steps=20, rho_tolerance=0.9)
+                     chunk_steps=20, rho_tolerance=0.9, skin=0.1)
     roomy = simulate(squeezed_block(), progress=False, capacity_multiplier=4.0,
-                     chunk_steps=20, rho_tolerance=0.9)
+                     chunk_steps=20, rho_tolerance=0.9, skin=0.1)
     assert tight.reallocations >= 1          # the tight list did overflow ...
     assert roomy.reallocations == 0
     assert tight.n_steps == roomy.n_steps
