@@ -84,3 +84,24 @@ def test_rollout_records_observations(tiny_tank):
     assert obs.shape == (7,)
     assert int(final.step) == 7
     assert float(final.t) == pytest.approx(7 * float(p.dt), rel=1e-6)
+
+
+def test_fluid_coupled_structure_keeps_physics_md_step_coefficients():
+    """Issue 7: fluid-only and DEM-only scenes take SPH_CFL and DEM_DT_FACTOR; a scene with
+    option fsi keeps physics.md's 0.25 h/(c0+|v|) and 0.2 √(m/k) (accuracy of the coupling),
+    and the same scene without the coupling takes the larger step."""
+    import dataclasses
+    sc = scenes.build("hydrostatic_plate", dx=0.0035, d=0.0025, dx_boundary=0.0025)
+    assert sc.options.get("fsi") is not None
+    bare = dataclasses.replace(sc, options={k: v for k, v in sc.options.items() if k != "fsi"})
+    h = float(sc.fluid.h.min())
+    acoustic = lambda cfl: cfl * h / (float(sc.params.sph.c0) + sc.v_max)
+    assert integrate.FSI_SPH_CFL == 0.25 and integrate.FSI_DEM_DT_FACTOR == 0.2
+    assert integrate.sph_dt(sc, sc.params) == pytest.approx(acoustic(0.25))
+    assert integrate.sph_dt(bare, bare.params) == pytest.approx(acoustic(integrate.SPH_CFL))
+    ratio = integrate.dem_dt(sc, sc.params) / integrate.dem_dt(bare, bare.params)
+    assert ratio == pytest.approx(0.2 / integrate.DEM_DT_FACTOR)
+    # the neighbour skin follows the step: 0.4 h at the larger step, 0.25 h with fsi
+    from fpsi_jax.scene import Physics
+    skin = lambda s: Physics.for_scene(s).neighbors.skin / float(np.max(s.fluid.h))
+    assert skin(sc) == pytest.approx(0.25) and skin(bare) == pytest.approx(0.4)
