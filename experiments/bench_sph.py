@@ -29,12 +29,10 @@ def bench(dx, steps, old_step=False, **phys_opts):
     """``old_step``: physics.md's 0.25 h/(c0+|v|) and the 0.25 h skin that went with it (the
     figures before issue 7 changed the step to 0.875 h/(c0+|v|) and the skin to 0.4 h)."""
     sc = scenes.build("dam_break", dx=dx)
+    dt = integrate.stable_dt(sc) * 0.25 / integrate.SPH_CFL if old_step else None
     if old_step:
-        _, p0 = setup(sc, **phys_opts)
         phys_opts = {"skin": 0.25, **phys_opts}
-        phys, params = setup(sc, float(p0.dt) * 0.25 / integrate.SPH_CFL, **phys_opts)
-    else:
-        phys, params = setup(sc, **phys_opts)
+    phys, params = setup(sc, dt, **phys_opts)
     p = params.as_arrays(jnp.float32)
     st = integrate.init_state(sc, phys, p)
     # warm up into the flow (the column has started to move) before timing; lists grown

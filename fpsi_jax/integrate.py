@@ -537,16 +537,11 @@ DEM_DT_FACTOR = 0.55
 FSI_DEM_DT_FACTOR = 0.2
 
 
-def _fsi_coupled(scene: Scene) -> bool:
-    return (scene.fluid is not None and scene.solid is not None
-            and scene.options.get("fsi") is not None)
-
-
 def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
-    """SPH bound (physics.md §Time integration, acoustic coefficient SPH_CFL, or FSI_SPH_CFL
-    with option fsi, instead of 0.25): Δt ≤ min(CFL h/(c0 + |v|max), 0.125 h²/ν,
-    0.25 √(h/|a|max)), h the smallest
-    smoothing length, |v|max the scene's velocity scale and |a|max = max(|g|, a_max).
+    """SPH bound (physics.md §Time integration, with the acoustic coefficient SPH_CFL, or
+    FSI_SPH_CFL with option fsi, instead of 0.25): Δt ≤ min(CFL h/(c0 + |v|max),
+    0.125 h²/ν, 0.25 √(h/|a|max)), h the smallest smoothing length, |v|max the scene's
+    velocity scale and |a|max = max(|g|, a_max).
 
     With grains in the fluid (fpi) the sound speed in ερ is c0/√ε, so c0/√ε_lo replaces c0,
     ε_lo = max(EPS_MIN, 1 − n_grain V_p,max W(0)) the least voidage the grains can make (3D
@@ -578,7 +573,7 @@ def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
         rate = (150.0 * (1 - e) * float(sp.mu) / (e * d * d)
                 + 1.75 * float(sp.rho0) * scene.v_max / d) / rho_p
         bounds.append(0.5 / float(np.max(rate)))
-    cfl = FSI_SPH_CFL if _fsi_coupled(scene) else SPH_CFL
+    cfl = FSI_SPH_CFL if scene.fsi_coupled else SPH_CFL
     bounds += [cfl * h / (c + scene.v_max), 0.25 * np.sqrt(h / acc)]
     if nu > 0:
         bounds.append(0.125 * h * h / nu)
@@ -586,9 +581,9 @@ def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
 
 
 def dem_dt(scene: Scene, params: Params, section: str = "slab") -> float:
-    """DEM bound (physics.md §Time integration, coefficient DEM_DT_FACTOR instead of 0.2, or
-    FSI_DEM_DT_FACTOR = 0.2 in a scene with option fsi, see above):
-    Δt ≤ factor √(m_min/k_max), and the same for rotation, factor √(J_min/k_rot). k_max adds the contact spring and the stiffest bond
+    """DEM bound (physics.md §Time integration, with DEM_DT_FACTOR, or FSI_DEM_DT_FACTOR =
+    0.2 with option fsi, instead of 0.2): Δt ≤ factor √(m_min/k_max), and the same for
+    rotation, factor √(J_min/k_rot). k_max adds the contact spring and the stiffest bond
     (k̄ A); k_rot = k̄_n I + (k̄_s A + k_s) R_max² for the stiffest bond."""
     so, dp, bp = scene.solid, params.dem, params.bond
     free = ~np.asarray(so.fixed, bool)
@@ -608,7 +603,7 @@ def dem_dt(scene: Scene, params: Params, section: str = "slab") -> float:
     bound = np.sqrt(m / k)
     if k_rot > 0:
         bound = min(bound, np.sqrt(J / k_rot))
-    bound = (FSI_DEM_DT_FACTOR if _fsi_coupled(scene) else DEM_DT_FACTOR) * bound
+    bound = (FSI_DEM_DT_FACTOR if scene.fsi_coupled else DEM_DT_FACTOR) * bound
     c = float(getattr(dp, "damping", 0.0))
     if c > 0:                      # the lagged viscous term is stable for c·Δt < 2; keep ≤ 0.5
         bound = min(bound, 0.5 / c)

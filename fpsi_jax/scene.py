@@ -150,6 +150,13 @@ class Scene:
     builder_kwargs: dict = field(default_factory=dict)
     dt: float | None = None
 
+    @property
+    def fsi_coupled(self) -> bool:
+        """Structure discs coupled to the fluid (option fsi): such a scene keeps physics.md's
+        step coefficients and the 0.25 h skin that suits them (integrate.FSI_SPH_CFL)."""
+        return (self.fluid is not None and self.solid is not None
+                and self.options.get("fsi") is not None)
+
     def validate(self) -> "Scene":
         """Check shapes, finiteness and that every particle lies inside the domain."""
         self.params.validate()
@@ -362,8 +369,8 @@ class Physics:
         # steps of the 24k dam break and overflowed to K = 48; 0.4 h measured fastest
         # (0.25 / 0.3 / 0.35 / 0.4 / 0.45 / 0.6 h: 0.51 / 0.94 / 0.96 / 0.98 / 0.81 / 0.83 M
         # particle-steps/s on one core). A fluid-coupled structure keeps physics.md's step
-        # (integrate.FSI_SPH_CFL) and the 0.25 h skin that suits it.
-        skin_factor = opts.pop("skin", 0.25 if opts.get("fsi") is not None else 0.4)
+        # and the 0.25 h skin that suits it (Scene.fsi_coupled).
+        skin_factor = opts.pop("skin", 0.25 if scene.fsi_coupled else 0.4)
         cap = opts.pop("capacity_multiplier", 1.25)
         kernels.get(opts.get("kernel", "wendland"))
         bp = opts.get("boundary_pressure", "fixed")

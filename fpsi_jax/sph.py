@@ -153,8 +153,8 @@ def anticlump(r, p_i, rho_i, p_j, rho_j, w, w_dp):
 
 def xsph_pairs(eps, rho_i, rho_j, pr: Pairs):
     """Pair terms of XSPH (K39, Monaghan 1989), δv_i = −ε Σ_j (m_j/ρ̄_ij) v_ij W_ij,
-    ρ̄_ij = (ρ_i+ρ_j)/2, over fluid neighbours only (summed in :func:`momentum_rate`). With the (v = 0) boundary particles in the sum, the transport
-    velocity near a wall is pulled towards zero while the momentum is not, and the bottom
+    ρ̄_ij = (ρ_i+ρ_j)/2, over fluid neighbours only (summed in :func:`momentum_rate`).
+    With the (v = 0) boundary particles in the sum, the transport velocity near a wall is pulled towards zero while the momentum is not, and the bottom
     layer of a dam break sinks into the floor (−0.5 mm at t = 0.3 s at dx = 10 mm, through
     the wall by 0.35 s at 5 mm; +3 mm, i.e. no penetration, with fluid pairs only)."""
     s = jnp.where(pr.fluid_j, pr.m_j * pr.w / (0.5 * (rho_i[:, None] + rho_j)), 0.0)

@@ -30,9 +30,11 @@ def collision_run(beta, overrides=None, steps_per_contact=300):
     time (an accuracy setting, independent of the stability bound: the derived step resolves
     a contact with only ≈ 4 steps); returns (e, contact time, e_ref, tc_ref, scene, result)."""
     scene, phys = ov.build("collision", overrides or {}, {"beta": beta})
-    b0, k0 = float(scene.params.dem.beta_n), float(scene.params.dem.kn)
-    tc0 = math.pi / math.sqrt(k0 / (0.5 * float(scene.solid.mass[0])) * (1 - b0 ** 2))
-    dt = min(tc0 / steps_per_contact, integrate.stable_dt(scene))
+    beta, kn = float(scene.params.dem.beta_n), float(scene.params.dem.kn)
+    m = 0.5 * float(scene.solid.mass[0])                  # reduced mass of the pair
+    e_ref = math.exp(-math.pi * beta / math.sqrt(1 - beta ** 2))
+    tc_ref = math.pi / math.sqrt(kn / m * (1 - beta ** 2))
+    dt = min(tc_ref / steps_per_contact, integrate.stable_dt(scene))
     res = simulate(scene, progress=False, dt=dt, **phys,
                    observe=lambda s: (s.solid.x[1, 0] - s.solid.x[0, 0],
                                       s.solid.v[1, 0] - s.solid.v[0, 0]))
@@ -46,10 +48,6 @@ def collision_run(beta, overrides=None, steps_per_contact=300):
     t_in = _crossings(t, -overlap, rising=False)[0]      # overlap becomes > 0
     t_out = _crossings(t, overlap, rising=False)[0]      # overlap returns to 0
     e = abs(float(vrel[-1])) / (2 * kw["speed"])
-    beta, kn = float(res.params.dem.beta_n), float(res.params.dem.kn)
-    m = 0.5 * float(scene.solid.mass[0])
-    e_ref = math.exp(-math.pi * beta / math.sqrt(1 - beta ** 2))
-    tc_ref = math.pi / math.sqrt(kn / m * (1 - beta ** 2))
     return e, t_out - t_in, e_ref, tc_ref, scene, res
 
 
