@@ -415,6 +415,28 @@ def rollout(phys: Physics, state: State, params: Params, n_steps: int,
     return jax.lax.scan(body, state, None, length=n_steps)
 
 
+def advance(phys: Physics, state: State, params: Params, n, n_max: int,
+            observe: Callable[[State], object] | None = None):
+    """Take ``n`` ≤ ``n_max`` steps, ``n`` a traced integer: one compiled program serves
+    every chunk length up to ``n_max``, so the host driver's last, shorter chunk does not
+    compile a second program (2–5 s for a coupled scene). Observations fill the first ``n``
+    rows of an ``n_max``-row buffer (the rest stay zero). A while loop underneath: not
+    reverse-differentiable, use :func:`rollout` for gradients."""
+    if observe is None:
+        return jax.lax.fori_loop(0, n, lambda i, s: step(phys, s, params), state), None
+    buf = jax.tree_util.tree_map(lambda a: jnp.zeros((n_max,) + a.shape, a.dtype),
+                                 jax.eval_shape(observe, state))
+
+    def body(i, carry):
+        s, b = carry
+        s = step(phys, s, params)
+        b = jax.tree_util.tree_map(
+            lambda bb, o: jax.lax.dynamic_update_index_in_dim(bb, o, i, 0), b, observe(s))
+        return s, b
+
+    return jax.lax.fori_loop(0, n, body, (state, buf))
+
+
 # --- initial state -----------------------------------------------------------------------
 def init_state(scene: Scene, phys: Physics, params: Params) -> State:
     """Arrays on device, neighbour lists allocated, initial rates evaluated."""

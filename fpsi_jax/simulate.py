@@ -102,7 +102,7 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
     return phys, params
 
 
-_rollout = jax.jit(integrate.rollout, static_argnums=(0, 3, 4))
+_advance = jax.jit(integrate.advance, static_argnums=(0, 4, 5))
 
 
 def grow(phys: Physics, failed: State) -> Physics:
@@ -174,7 +174,9 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
     try:
         while done < n_total:
             n = min(chunk, n_total - done)
-            new, obs = _rollout(phys, state, p, n, observe)
+            new, obs = _advance(phys, state, p, jnp.asarray(n, jnp.int32), chunk, observe)
+            if obs is not None and n < chunk:
+                obs = jax.tree_util.tree_map(lambda a: a[:n], obs)
             jax.block_until_ready(new.status.bad)
             if done == 0:
                 compile_s = time.perf_counter() - t0   # compile + first chunk

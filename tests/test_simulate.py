@@ -55,3 +55,29 @@ def test_dt_override_is_honoured_and_checked():
         setup(sc, **ph)
     with pytest.raises(ParameterError, match="dt = -1"):
         overrides.build("hydrostatic_tank", {"dt": -1})
+
+
+def test_last_short_chunk_reuses_the_compiled_chunk_and_equals_a_rollout(tiny_tank):
+    """The driver's chunks run through integrate.advance with a traced step count: a tail
+    shorter than a chunk takes the same program (one compile) and the same steps as a plain
+    scan rollout, observations included."""
+    import jax
+    import jax.numpy as jnp
+
+    from fpsi_jax import integrate
+    from fpsi_jax.simulate import _advance, setup
+
+    phys, params = setup(tiny_tank)
+    p = params.as_arrays(jnp.float32)
+    st = integrate.init_state(tiny_tank, phys, p)
+    obs = lambda s: jnp.max(s.fluid.x[:, 1])
+    n_before = _advance._cache_size()
+    full, o_full = _advance(phys, st, p, jnp.int32(7), 7, obs)
+    tail, o_tail = _advance(phys, st, p, jnp.int32(4), 7, obs)
+    assert _advance._cache_size() == n_before + 1
+    ref, o_ref = jax.jit(integrate.rollout, static_argnums=(0, 3, 4))(phys, st, p, 4, obs)
+    np.testing.assert_array_equal(np.asarray(tail.fluid.x), np.asarray(ref.fluid.x))
+    assert int(tail.step) == 4 and int(full.step) == 7
+    np.testing.assert_array_equal(np.asarray(o_tail)[:4], np.asarray(o_ref))
+    np.testing.assert_array_equal(np.asarray(o_tail)[4:], 0.0)
+    np.testing.assert_array_equal(np.asarray(o_full)[:4], np.asarray(o_ref))
