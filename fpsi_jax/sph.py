@@ -50,6 +50,15 @@ class Pairs(NamedTuple):
     rho_j: jax.Array    # ρ_j at the start of the step (for the volumes m_j/ρ_j)
 
 
+def sum_neighbours(*terms):
+    """Σ_j of several (rows, K) pair arrays at once: one variadic reduction over the
+    neighbour axis, so XLA evaluates the pair terms in one loop instead of writing a
+    stacked (rows, K, c) array first. Returns a tuple of (rows,) arrays."""
+    zero = tuple(jnp.zeros((), t.dtype) for t in terms)
+    return jax.lax.reduce(tuple(terms), zero,
+                          lambda a, b: tuple(x + y for x, y in zip(a, b)), (1,))
+
+
 def gather(a, idx, fill=1.0):
     """a[idx] with the padding index N mapped to ``fill`` (a may be (N,) or (N, c))."""
     pad = jnp.full((1,) + a.shape[1:], fill, a.dtype)
@@ -100,7 +109,12 @@ def delta_pairs(delta, c0, rho_i, pr: Pairs, diffused=None):
 
 def pressure_pairs(m_j, coef, dx, f):
     """Pair terms −m_j (P_i/ρ_i² + P_j/ρ_j² + R_ij) ∇_iW_ij (W43, K34); ``coef`` is the bracket."""
-    return -(m_j * coef * f)[..., None] * dx
+    return pressure_scalar(m_j, coef, f)[..., None] * dx
+
+
+def pressure_scalar(m_j, coef, f):
+    """The scalar s of :func:`pressure_pairs` = s x_ij: −m_j coef F_ij."""
+    return -(m_j * coef * f)
 
 
 def voidage_bracket(p_i, rt_i, p_j, rt_j):
@@ -120,9 +134,13 @@ def pressure_acc(m_j, coef, dx, f):
 
 def viscous_pairs(mu_i, mu_j, rho_i, rho_j, pr: Pairs):
     """Pair terms of the Morris viscosity (K36), see :func:`viscous_acc`."""
-    s = (pr.m_j * (mu_i + mu_j) * pr.r2 * pr.f
-         / (rho_i[:, None] * rho_j * (pr.r2 + 0.01 * pr.hij ** 2)))
-    return s[..., None] * pr.vij
+    return viscous_scalar(mu_i, mu_j, rho_i, rho_j, pr)[..., None] * pr.vij
+
+
+def viscous_scalar(mu_i, mu_j, rho_i, rho_j, pr: Pairs):
+    """The scalar s of :func:`viscous_pairs` = s v_ij."""
+    return (pr.m_j * (mu_i + mu_j) * pr.r2 * pr.f
+            / (rho_i[:, None] * rho_j * (pr.r2 + 0.01 * pr.hij ** 2)))
 
 
 def viscous_acc(mu_i, mu_j, rho_i, rho_j, pr: Pairs):
@@ -132,10 +150,15 @@ def viscous_acc(mu_i, mu_j, rho_i, rho_j, pr: Pairs):
 
 def artificial_viscosity_pairs(alpha, c0, rho_i, rho_j, pr: Pairs):
     """Pair terms of :func:`artificial_viscosity`."""
-    vx = jnp.sum(pr.vij * pr.dx, axis=-1)
+    return artificial_viscosity_scalar(alpha, c0, rho_i, rho_j, pr)[..., None] * pr.dx
+
+
+def artificial_viscosity_scalar(alpha, c0, rho_i, rho_j, pr: Pairs):
+    """The scalar s of :func:`artificial_viscosity_pairs` = s x_ij: −m_j Π_ij F_ij."""
+    vx = pr.vij[..., 0] * pr.dx[..., 0] + pr.vij[..., 1] * pr.dx[..., 1]
     mu_ij = pr.hij * jnp.minimum(vx, 0.0) / (pr.r2 + 0.01 * pr.hij ** 2)
     pi_ij = -alpha * c0 * mu_ij / (0.5 * (rho_i[:, None] + rho_j))
-    return -(pr.m_j * pi_ij * pr.f)[..., None] * pr.dx
+    return -(pr.m_j * pi_ij * pr.f)
 
 
 def artificial_viscosity(alpha, c0, rho_i, rho_j, pr: Pairs):
@@ -157,8 +180,12 @@ def xsph_pairs(eps, rho_i, rho_j, pr: Pairs):
     With the (v = 0) boundary particles in the sum, the transport velocity near a wall is pulled towards zero while the momentum is not, and the bottom
     layer of a dam break sinks into the floor (−0.5 mm at t = 0.3 s at dx = 10 mm, through
     the wall by 0.35 s at 5 mm; +3 mm, i.e. no penetration, with fluid pairs only)."""
-    s = jnp.where(pr.fluid_j, pr.m_j * pr.w / (0.5 * (rho_i[:, None] + rho_j)), 0.0)
-    return -eps * s[..., None] * pr.vij
+    return xsph_scalar(eps, rho_i, rho_j, pr)[..., None] * pr.vij
+
+
+def xsph_scalar(eps, rho_i, rho_j, pr: Pairs):
+    """The scalar s of :func:`xsph_pairs` = s v_ij."""
+    return -eps * jnp.where(pr.fluid_j, pr.m_j * pr.w / (0.5 * (rho_i[:, None] + rho_j)), 0.0)
 
 
 def smoothing_length_rate(h, rho, drho, n_d=2.0):
@@ -218,22 +245,25 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
                 if not phys.anticlump_boundary:
                     r_ij = jnp.where(pr.fluid_j, r_ij, 0.0)
                 coef = coef + r_ij
-        pair = pressure_pairs(pr.m_j, coef, pr.dx, pr.f)
+        # every pair term is a scalar times x_ij or v_ij: the four sums are then one
+        # variadic reduction over scalars (README "Speed")
+        s_dx = pressure_scalar(pr.m_j, coef, pr.f)
     with jax.named_scope("sph.viscosity"):
-        pair = pair + viscous_pairs(sp.mu, sp.mu, rho_i, rho_j, pr)
+        s_v = viscous_scalar(sp.mu, sp.mu, rho_i, rho_j, pr)
     if phys.artificial_viscosity:
         with jax.named_scope("sph.artificial_viscosity"):
-            pair = pair + artificial_viscosity_pairs(sp.alpha, sp.c0, rho_i, rho_j, pr)
+            s_dx = s_dx + artificial_viscosity_scalar(sp.alpha, sp.c0, rho_i, rho_j, pr)
+    dxx, dxy, vx, vy = pr.dx[..., 0], pr.dx[..., 1], pr.vij[..., 0], pr.vij[..., 1]
+    ax_, ay_ = s_dx * dxx + s_v * vx, s_dx * dxy + s_v * vy
     if phys.xsph:
-        # one reduction over the neighbour axis for both sums: XLA then evaluates every
-        # pair term in a single loop instead of re-reading the pair arrays per sum
         with jax.named_scope("sph.xsph"):
-            both = jnp.sum(jnp.concatenate(
-                [pair, xsph_pairs(sp.eps_xsph, rho_i, rho_j, pr)], axis=-1), axis=1)
-        acc, xs = both[:, :2] + gravity, both[:, 2:]
+            s_x = xsph_scalar(sp.eps_xsph, rho_i, rho_j, pr)
+            ax, ay, xx, xy = sum_neighbours(ax_, ay_, s_x * vx, s_x * vy)
+        acc, xs = jnp.stack([ax, ay], axis=1) + gravity, jnp.stack([xx, xy], axis=1)
     else:
-        acc = jnp.sum(pair, axis=1) + gravity
+        acc = jnp.stack(sum_neighbours(ax_, ay_), axis=1) + gravity
         xs = jnp.zeros_like(acc)
+    pair = jnp.stack([ax_, ay_], axis=-1) if with_pairs else None
     return acc, xs, (pair if with_pairs else None)
 
 
