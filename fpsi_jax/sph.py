@@ -50,13 +50,23 @@ class Pairs(NamedTuple):
     rho_j: jax.Array    # ρ_j at the start of the step (for the volumes m_j/ρ_j)
 
 
+@jax.custom_jvp
 def sum_neighbours(*terms):
     """Σ_j of several (rows, K) pair arrays at once: one variadic reduction over the
     neighbour axis, so XLA evaluates the pair terms in one loop instead of writing a
-    stacked (rows, K, c) array first. Returns a tuple of (rows,) arrays."""
+    stacked (rows, K, c) array first. Returns a tuple of (rows,) arrays.
+
+    Its derivative is the plain per-term sum (the JVP rule below): JAX's own transpose of
+    a variadic reduce fails when one output's cotangent is a symbolic zero (e.g. a
+    gradient that does not depend on the XSPH sums)."""
     zero = tuple(jnp.zeros((), t.dtype) for t in terms)
     return jax.lax.reduce(tuple(terms), zero,
                           lambda a, b: tuple(x + y for x, y in zip(a, b)), (1,))
+
+
+@sum_neighbours.defjvp
+def _sum_neighbours_jvp(primals, tangents):
+    return sum_neighbours(*primals), tuple(jnp.sum(t, axis=1) for t in tangents)
 
 
 def gather(a, idx, fill=1.0):
