@@ -274,7 +274,7 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
         acc = jnp.stack(sum_neighbours(ax_, ay_), axis=1) + gravity
         xs = jnp.zeros_like(acc)
     pair = jnp.stack([ax_, ay_], axis=-1) if with_pairs else None
-    return acc, xs, (pair if with_pairs else None)
+    return acc, xs, pair
 
 
 def extrapolated_boundary_pressure(n_fluid, kern, sp, gravity, x, h, rho, p, idx_b,

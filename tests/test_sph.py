@@ -684,3 +684,27 @@ def test_position_gradient_finite_for_coincident_particles():
 
     g = np.asarray(jax.jit(jax.grad(loss))(_a(XC)))
     assert np.all(np.isfinite(g))
+
+
+def test_sum_neighbours_equals_per_term_sums_and_differentiates_with_an_unused_output():
+    """The variadic neighbour sum: the same values as jnp.sum per term, and a gradient that
+    uses only some outputs (a symbolic-zero cotangent for the rest: JAX's own transpose of a
+    variadic reduce failed there) equals the per-term one."""
+    a = jnp.arange(12.0).reshape(3, 4) / 7.0
+    b = jnp.cos(a)
+    sa, sb = sph.sum_neighbours(a, b)
+    np.testing.assert_allclose(sa, jnp.sum(a, axis=1), rtol=1e-6)
+    np.testing.assert_allclose(sb, jnp.sum(b, axis=1), rtol=1e-6)
+
+    def run(c, total):
+        def body(x, _):
+            u, v = total(x * c, jnp.sin(x))      # v is carried out, never used
+            return x + 0.01 * u[:, None], v
+        x, _ = jax.lax.scan(body, a, None, length=3)
+        return jnp.sum(x ** 2)
+
+    per_term = lambda *t: tuple(jnp.sum(x, axis=1) for x in t)
+    g = jax.grad(run)(2.0, sph.sum_neighbours)       # raised TypeError without the rule
+    np.testing.assert_allclose(g, jax.grad(run)(2.0, per_term), rtol=1e-6)
+    jf = jax.jacfwd(lambda x: sph.sum_neighbours(x, x * x)[1])(a)
+    np.testing.assert_allclose(jf, jax.jacfwd(lambda x: jnp.sum(x * x, axis=1))(a), rtol=1e-6)
