@@ -422,16 +422,15 @@ def advance(phys: Physics, state: State, params: Params, n, n_max: int,
     compile a second program (2–5 s for a coupled scene). Observations fill the first ``n``
     rows of an ``n_max``-row buffer (the rest stay zero). A while loop underneath: not
     reverse-differentiable, use :func:`rollout` for gradients."""
-    if observe is None:
-        return jax.lax.fori_loop(0, n, lambda i, s: step(phys, s, params), state), None
-    buf = jax.tree_util.tree_map(lambda a: jnp.zeros((n_max,) + a.shape, a.dtype),
-                                 jax.eval_shape(observe, state))
+    buf = None if observe is None else jax.tree_util.tree_map(
+        lambda a: jnp.zeros((n_max,) + a.shape, a.dtype), jax.eval_shape(observe, state))
 
     def body(i, carry):
         s, b = carry
         s = step(phys, s, params)
-        b = jax.tree_util.tree_map(
-            lambda bb, o: jax.lax.dynamic_update_index_in_dim(bb, o, i, 0), b, observe(s))
+        if observe is not None:
+            b = jax.tree_util.tree_map(
+                lambda bb, o: jax.lax.dynamic_update_index_in_dim(bb, o, i, 0), b, observe(s))
         return s, b
 
     return jax.lax.fori_loop(0, n, body, (state, buf))

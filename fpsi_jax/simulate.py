@@ -175,8 +175,7 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
         while done < n_total:
             n = min(chunk, n_total - done)
             new, obs = _advance(phys, state, p, jnp.asarray(n, jnp.int32), chunk, observe)
-            if obs is not None and n < chunk:
-                obs = jax.tree_util.tree_map(lambda a: a[:n], obs)
+            obs = jax.tree_util.tree_map(lambda a: a[:n], obs)   # rows past n are unused
             jax.block_until_ready(new.status.bad)
             if done == 0:
                 compile_s = time.perf_counter() - t0   # compile + first chunk
