@@ -103,7 +103,8 @@ MARK = "SPECIALISATION_ROW "
 # overrides, chunk length in steps); every registered scene without a row here runs with its
 # defaults and DEFAULT_STEPS
 COARSE_GATE = dict(dx=0.0035, d=0.0025, dx_boundary=0.0025, h0=0.004375)
-MINIMAL_SPH = dict(xsph=False, anticlump=False, delta_sph=False, artificial_viscosity=False)
+MINIMAL_SPH = dict(xsph=False, anticlump=False, delta_sph=False, artificial_viscosity=False,
+                   wall_repulsion=False)
 CASES = {
     "hydrostatic_tank": ("hydrostatic_tank", dict(dx=0.01), {}, 100),
     "dam_break": ("dam_break", dict(dx=0.01), {}, 100),
@@ -127,7 +128,7 @@ CASES = {
 }
 DEFAULT_STEPS = 100
 SPH_SWITCHES = {"xsph": "eps_xsph", "anticlump": "r_clump", "delta_sph": "delta",
-                "artificial_viscosity": "alpha"}     # switch: the Params.sph coefficient
+                "artificial_viscosity": "alpha", "wall_repulsion": "wall_beta"}     # switch: the Params.sph coefficient
 SCOPES = ("sph.", "boundary.", "dem.", "bonds", "fsi.", "fpi.", "neighbors.")
 
 
@@ -197,7 +198,8 @@ def masked_scene(scene, phys, dt):
     new, added, notes = {}, [], []
     params = scene.params
     opts = dict(xsph=True, anticlump=True, variable_h=True, delta_sph=True,
-                artificial_viscosity=True, dem_substeps=phys.dem_substeps)
+                artificial_viscosity=True, wall_repulsion=True,
+                dem_substeps=phys.dem_substeps)
     if scene.fluid is None:
         fluid, boundary, sp, w, hgt = _dummy_tank(x, y0, s, dt, params.gravity)
         new.update(fluid=fluid, boundary=boundary)

@@ -571,8 +571,8 @@ FSI_DEM_DT_FACTOR = 0.2
 def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
     """SPH bound (physics.md §Time integration, with the acoustic coefficient SPH_CFL, or
     FSI_SPH_CFL with option fsi, instead of 0.25): Δt ≤ min(CFL h/(c0 + |v|max),
-    0.125 h²/ν, 0.25 √(h/|a|max)), h the smallest smoothing length, |v|max the scene's
-    velocity scale and |a|max = max(|g|, a_max).
+    0.125 h²/ν, 0.25 √(h/|a|max), r0/(c0 √β) with the wall backstop), h the smallest
+    smoothing length, |v|max the scene's velocity scale and |a|max = max(|g|, a_max).
 
     With grains in the fluid (fpi) the sound speed in ερ is c0/√ε, so c0/√ε_lo replaces c0,
     ε_lo = max(EPS_MIN, 1 − n_grain V_p,max W(0)) the least voidage the grains can make (3D
@@ -606,6 +606,11 @@ def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
         bounds.append(0.5 / float(np.max(rate)))
     cfl = FSI_SPH_CFL if scene.fsi_coupled else SPH_CFL
     bounds += [cfl * h / (c + scene.v_max), 0.25 * np.sqrt(h / acc)]
+    beta, r0 = float(sp.wall_beta), scene.wall_range()
+    if r0 > 0 and scene.options.get("wall_repulsion", True) and beta > 0:
+        # the wall backstop's stiffness is at most β c0²/r0² (sph.wall_repulsion_scalar);
+        # leapfrog needs Δt < 2 r0/(c0 √β), kept with a factor 2 of margin
+        bounds.append(r0 / (c * math.sqrt(beta)))
     if nu > 0:
         bounds.append(0.125 * h * h / nu)
     return float(min(bounds))

@@ -54,6 +54,9 @@ class SphParams:
               Physics.delta_sph is on
     alpha     Monaghan artificial-viscosity coefficient α, used only when
               Physics.artificial_viscosity is on (not in the seeds)
+    wall_beta strength β of the wall backstop, (β c0²/r0²)(1 − r²/r0²)² x_ij inside the
+              static range r0 = Physics.wall_range (sph.wall_repulsion_scalar), used only
+              when Physics.wall_repulsion is on (not in the seeds)
     """
 
     rho0: Any = 1000.0
@@ -65,6 +68,7 @@ class SphParams:
     eps_xsph: Any = 0.5
     delta: Any = 0.1
     alpha: Any = 0.0
+    wall_beta: Any = 0.05
 
     def validate(self):
         require("sph.rho0", self.rho0, 0.0, None, lo_open=True)
@@ -76,6 +80,7 @@ class SphParams:
         require("sph.eps_xsph", self.eps_xsph, 0.0, 1.0)
         require("sph.delta", self.delta, 0.0, 1.0)
         require("sph.alpha", self.alpha, 0.0, 1.0)
+        require("sph.wall_beta", self.wall_beta, 0.0, 1.0)
 
 
 @pytree_dataclass

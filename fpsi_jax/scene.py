@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -157,6 +158,16 @@ class Scene:
         return (self.fluid is not None and self.solid is not None
                 and self.options.get("fsi") is not None)
 
+    def wall_range(self) -> float:
+        """Reach r0 = κ min(Δx_wall, Δp) of the wall backstop (sph.wall_repulsion_scalar),
+        κ = WALL_KAPPA, Δx_wall = √(m_b/ρ0) the finest fixed-wall spacing, Δp the fluid's
+        initial spacing; 0 without fluid or fixed wall particles."""
+        if self.fluid is None or self.boundary is None or self.boundary.n == 0:
+            return 0.0
+        sp = self.params.sph
+        dxb = math.sqrt(float(np.min(self.boundary.mass)) / float(sp.rho0))
+        return WALL_KAPPA * min(dxb, float(sp.dp))
+
     def validate(self) -> "Scene":
         """Check shapes, finiteness and that every particle lies inside the domain."""
         self.params.validate()
@@ -278,6 +289,11 @@ class NeighborConfig:
 
 
 BOUNDARY_PRESSURE = ("fixed", "extrapolated")
+# reach of the wall backstop in wall/fluid spacings (Scene.wall_range): the first fluid
+# layer at rest sits (Δp + Δx_wall)/2 ≥ Δx_wall away, a particle squeezing between two
+# wall particles comes within Δx_wall/2, and r0 > Δx_wall/√2 leaves no gap inside a
+# square wall lattice
+WALL_KAPPA = 0.8
 BOND_SECTIONS = ("slab", "circular")
 VOIDAGE = ("area", "mapped")
 FPI_PRESSURE = ("archimedes", "gradient")
@@ -295,6 +311,10 @@ class Physics:
       variable_h           Dh/Dt = −h/(n_d ρ) Dρ/Dt (K37)
       delta_sph            Molteni–Colagrossi density diffusion (off by default)
       artificial_viscosity Monaghan α-viscosity (off by default; not in the seeds)
+      wall_repulsion       short-range backstop against fluid creeping through a fixed wall
+                           (sph.wall_repulsion_scalar; on by default, zero at rest; not in
+                           the seeds); wall_range, its reach r0, is derived from the scene
+                           (Scene.wall_range)
       boundary_pressure    'fixed' (W5/K5: ρ, P of boundary particles never change) or
                            'extrapolated' (Adami et al. 2012: P_b from the fluid, with the
                            hydrostatic correction)
@@ -333,6 +353,8 @@ class Physics:
     variable_h: bool = True
     delta_sph: bool = False
     artificial_viscosity: bool = False
+    wall_repulsion: bool = True
+    wall_range: float = 0.0
     boundary_pressure: str = "fixed"
     h_margin: float = 1.05
     rho_tolerance: float = 0.3
@@ -353,7 +375,7 @@ class Physics:
     lubrication: bool = True
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
-               "artificial_viscosity", "boundary_pressure", "h_margin", "rho_tolerance", "x64", "skin",
+               "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin", "rho_tolerance", "x64", "skin",
                "capacity_multiplier", "bond_section", "dem_skin", "fsi", "dem_substeps", "fpi",
                "voidage", "lubrication", "fpi_pressure", "eps_floor")
 
@@ -442,7 +464,7 @@ class Physics:
                                     box=box, capacity_multiplier=float(cap))
         return cls(n_fluid=scene.fluid.n if scene.fluid else 0,
                    n_boundary=scene.boundary.n if scene.boundary else 0,
-                   neighbors=nb,
+                   neighbors=nb, wall_range=scene.wall_range(),
                    n_solid=scene.solid.n if scene.solid else 0,
                    n_bonds=scene.bonds.n if scene.bonds else 0,
                    n_walls=scene.walls.n if scene.walls else 0,
@@ -468,6 +490,7 @@ class Physics:
             m += ["sph.artificial_viscosity"] if self.artificial_viscosity else []
         if self.has_boundary:
             m += [f"boundary.{self.boundary_pressure}"]
+            m += ["sph.wall_repulsion"] if self.wall_repulsion and self.has_fluid else []
         if self.has_solid:
             m += ["dem.contacts", "dem.local_damping"]
             m += ["dem.walls"] if self.n_walls else []

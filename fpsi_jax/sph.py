@@ -184,6 +184,23 @@ def anticlump(r, p_i, rho_i, p_j, rho_j, w, w_dp):
     return r * base * (w / w_dp) ** 4
 
 
+def wall_repulsion_scalar(beta, c0, r0, is_wall, pr: Pairs):
+    """The scalar s (a_i = s x_ij) of a short-range wall backstop (not in the seeds):
+    a_i = (β c0²/r0²) (1 − r²/r0²)² x_ij for a fixed boundary particle j closer than the
+    static range r0 = Physics.wall_range = κ min(Δx_wall, Δp) (κ = scene.WALL_KAPPA = 0.8,
+    Δx_wall the finest wall spacing √(m_b/ρ0), Δp the fluid's).
+
+    It is zero at rest (the first fluid layer sits (Δp + Δx_wall)/2 from the first wall
+    row) and acts on a particle about to pass between two wall particles (≤ Δx_wall/2 from
+    both): the Adami wall pressure takes its value from the fluid around it, so a slow
+    particle at the free surface of a corner meets a near-zero wall pressure and could
+    creep through the layers (README "Boundaries"). Written in r² (no root, no divide) so
+    it costs little per pair. Conservative, U = β c0²/6 (1 − r²/r0²)³, with stiffness at
+    most β c0²/r0²: ``sph_dt`` keeps Δt ≤ r0/(c0 √β), half the leapfrog limit."""
+    q = jnp.maximum(1.0 - pr.r2 * (1.0 / (r0 * r0)), 0.0)
+    return jnp.where(is_wall, (beta * c0 * c0 / (r0 * r0)) * q * q, 0.0)
+
+
 def xsph_pairs(eps, rho_i, rho_j, pr: Pairs):
     """Pair terms of XSPH (K39, Monaghan 1989), δv_i = −ε Σ_j (m_j/ρ̄_ij) v_ij W_ij,
     ρ̄_ij = (ρ_i+ρ_j)/2, over fluid neighbours only (summed in :func:`momentum_rate`).
@@ -224,7 +241,8 @@ def density_rate(phys, sp, rho_i, pr: Pairs, eps=None, rho_intrinsic=None):
 
 
 def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, eps=None):
-    """dv/dt (pressure with anti-clump, Morris viscosity, gravity; W43, K34–K38) and the
+    """dv/dt (pressure with anti-clump, Morris viscosity, gravity; W43, K34–K38; the wall
+    backstop :func:`wall_repulsion_scalar` when switched on) and the
     XSPH correction of the fluid rows. ``rho``/``p`` cover all particles (fluid, boundary,
     structure) at the new time level. With grains, ``eps`` is the voidage of every particle
     (1 off the fluid) and the pressure bracket is :func:`voidage_bracket`; the anti-clump
@@ -263,6 +281,14 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
     if phys.artificial_viscosity:
         with jax.named_scope("sph.artificial_viscosity"):
             s_dx = s_dx + artificial_viscosity_scalar(sp.alpha, sp.c0, rho_i, rho_j, pr)
+    if phys.wall_repulsion and phys.wall_range > 0:
+        with jax.named_scope("sph.wall_repulsion"):
+            # without structure discs every non-fluid slot is a wall particle or padding
+            # (far away: q = 0), so the fluid mask the pairs already carry suffices
+            is_wall = (~pr.fluid_j if not phys.n_structure else
+                       (pr.idx >= phys.n_fluid) & (pr.idx < phys.n_fluid + phys.n_boundary))
+            s_dx = s_dx + wall_repulsion_scalar(sp.wall_beta, sp.c0, phys.wall_range,
+                                                is_wall, pr)
     dxx, dxy, vx, vy = pr.dx[..., 0], pr.dx[..., 1], pr.vij[..., 0], pr.vij[..., 1]
     ax_, ay_ = s_dx * dxx + s_v * vx, s_dx * dxy + s_v * vy
     if phys.xsph:

@@ -342,6 +342,86 @@ def test_artificial_viscosity():
     np.testing.assert_array_equal(np.asarray(zero), 0.0)
 
 
+def _wall_pair(r, r0=0.0032, p=(0.0, 0.0), beta=0.05):
+    """Fluid 0 at the origin, boundary particle 1 at (r, 0); pressures ``p``. Returns the
+    backstop's part of a_0 (the step with it minus the step without)."""
+    x = _a([[0.0, 0.0], [r, 0.0]])
+    pr = sph.pairs(KERN, 1, x, jnp.zeros((2, 2)), _a([0.004, 0.004]), _a([0.016, 0.016]),
+                   _a([1000.0, 1000.0]), jnp.asarray([[1]]))
+    sp = _sp(mu=0.0, wall_beta=beta)
+    out = {}
+    for on in (False, True):
+        phys = _phys(n_fluid=1, n_boundary=1, wall_repulsion=on, wall_range=r0, **OFF)
+        acc, _, _ = sph.momentum_rate(phys, KERN, sp, _a([0.0, 0.0]), _a([1000.0, 1000.0]),
+                                      _a(p), pr)
+        out[on] = np.asarray(acc)[0]
+    return out[True] - out[False]
+
+
+def test_wall_repulsion_two_particles_closed_form():
+    """a_i = (β c0²/r0²)(1 − r²/r0²)² x_ij inside r0, zero outside and with β = 0."""
+    beta, c0, r0 = 0.05, SP["c0"], 0.0032
+    for r in (0.25 * r0, 0.5 * r0, 0.9 * r0):
+        want = beta * c0 ** 2 / r0 ** 2 * (1 - r * r / r0 ** 2) ** 2 * (-r)  # x_01 = (−r, 0)
+        np.testing.assert_allclose(_wall_pair(r), [want, 0.0], rtol=1e-12)
+        assert want < 0                                                # pushed away, to −x
+    assert np.all(_wall_pair(1.001 * r0) == 0.0) and np.all(_wall_pair(0.006) == 0.0)
+    # independent of the pressures; off with β = 0 or without a range
+    np.testing.assert_allclose(_wall_pair(0.5 * r0, p=(-400.0, 0.0)), _wall_pair(0.5 * r0),
+                               rtol=1e-12)
+    assert np.all(_wall_pair(0.5 * r0, beta=0.0) == 0.0)
+    assert np.all(_wall_pair(0.5 * r0, r0=0.0) == 0.0)
+
+
+def test_wall_repulsion_is_the_gradient_of_its_potential():
+    """Conservative: a = −dU/dr along x_ij/r with U = β c0²/6 (1 − r²/r0²)³ (checked by
+    central differences of U), so a particle can bounce off it without gaining energy."""
+    beta, c0, r0 = 0.05, SP["c0"], 0.0032
+    U = lambda r: beta * c0 ** 2 / 6 * max(1 - r * r / r0 ** 2, 0.0) ** 3
+    for r in (0.3 * r0, 0.7 * r0):
+        e = 1e-8
+        np.testing.assert_allclose(-_wall_pair(r)[0], -(U(r + e) - U(r - e)) / (2 * e),
+                                   rtol=1e-6)
+
+
+def test_wall_range_from_the_scene_and_its_time_step_bound():
+    """r0 = 0.8 min(√(m_b/ρ0), Δp); the derived step respects Δt ≤ r0/(c0 √β)."""
+    sc = scenes.build("dam_break", dx=0.01, dx_boundary=0.005)
+    np.testing.assert_allclose(sc.wall_range(), 0.8 * 0.005, rtol=1e-12)
+    assert Physics.for_scene(sc).wall_range == sc.wall_range()
+    sc = scenes.build("dam_break", dx=0.01)
+    np.testing.assert_allclose(sc.wall_range(), 0.8 * 0.01, rtol=1e-12)
+    sp = sc.params.sph
+    strong = sc.params.replace(sph=sp.replace(wall_beta=1.0))     # binding for β = 1
+    bound = sc.wall_range() / float(sp.c0)
+    assert integrate.sph_dt(sc, strong) <= bound * (1 + 1e-12)
+    np.testing.assert_allclose(integrate.sph_dt(sc, strong), bound, rtol=1e-12)
+
+
+def test_wall_repulsion_only_acts_on_fixed_boundary_neighbours():
+    """Fluid–fluid pairs closer than r0 feel nothing from it (only j in the boundary)."""
+    r = 0.5 * 0.0032
+    x = _a([[0.0, 0.0], [r, 0.0]])
+    pr = sph.pairs(KERN, 2, x, jnp.zeros((2, 2)), _a([0.004, 0.004]), _a([0.016, 0.016]),
+                   _a([1000.0, 1000.0]), jnp.asarray([[1], [0]]))
+    accs = [np.asarray(sph.momentum_rate(_phys(n_fluid=2, n_boundary=0, wall_repulsion=on,
+                                               wall_range=0.0032, **OFF), KERN,
+                                         _sp(mu=0.0), _a([0.0, 0.0]), _a([1000.0, 1000.0]),
+                                         _a([0.0, 0.0]), pr)[0])
+            for on in (False, True)]
+    np.testing.assert_array_equal(accs[0], accs[1])
+
+
+@pytest.mark.parametrize("name", ["dam_break", "hydrostatic_tank"])
+def test_wall_repulsion_is_zero_at_rest(name):
+    """In the builders' initial states no fluid particle is inside r0 of a wall particle,
+    so the backstop adds exactly nothing there (it is a safeguard, not a model change)."""
+    scene = scenes.build(name, dx=0.02)
+    on, off = (integrate.init_state(scene, Physics.for_scene(scene, wall_repulsion=w),
+                                    scene.params) for w in (True, False))
+    np.testing.assert_array_equal(np.asarray(on.fluid.acc), np.asarray(off.fluid.acc))
+
+
 def test_xsph_correction():
     _, xs = _momentum(_phys(**{**OFF, "xsph": True}))
     want = np.array([_ref(i)["xsph"] for i in range(NF)])
