@@ -678,7 +678,7 @@ def check_dt(scene: Scene, dt: float, params: Params | None = None, substeps: in
         raise ParameterError(
             f"dt = {dt:.4g} s exceeds the stability bound {bound:.4g} s{sub} "
             f"(SPH: {SPH_CFL:g} h/(c0+|v|max), {FSI_SPH_CFL:g} with fsi, 0.125 h²/ν, "
-            "0.25 √(h/|a|max); "
+            "0.25 √(h/|a|max), r0/(c0 √β) for the wall backstop; "
             f"DEM: {DEM_DT_FACTOR:g} √(m/k), {FSI_DEM_DT_FACTOR:g} √(m/k) coupled to "
             "the fluid, per "
             f"sub-step); allowed (0, {bound:.4g}] s")

@@ -375,8 +375,8 @@ class Physics:
     lubrication: bool = True
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
-               "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin", "rho_tolerance", "x64", "skin",
-               "capacity_multiplier", "bond_section", "dem_skin", "fsi", "dem_substeps", "fpi",
+               "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
+               "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section", "dem_skin", "fsi", "dem_substeps", "fpi",
                "voidage", "lubrication", "fpi_pressure", "eps_floor")
 
     @classmethod
