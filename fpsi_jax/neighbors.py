@@ -17,6 +17,7 @@ import dataclasses
 import functools
 import warnings
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax_md import partition, space
@@ -50,10 +51,56 @@ def allocate(cfg: NeighborConfig, x) -> partition.NeighborList:
 
 
 def update(cfg: NeighborConfig, nbrs: partition.NeighborList, x):
-    """Update inside a compiled step; returns (list, rebuilt?)."""
-    new = nbrs.update(shift(cfg, x))
-    rebuilt = jnp.any(new.reference_position != nbrs.reference_position)
+    """Update inside a compiled step; returns (list, rebuilt?). As jax-md's
+    ``nbrs.update``: rebuilt (:func:`rebuild`) only once a particle has moved more than
+    skin/2 since the last build."""
+    xs = shift(cfg, x)
+    moved = jnp.sum((xs - nbrs.reference_position) ** 2, axis=-1)
+    rebuilt = jnp.any(moved > (0.5 * cfg.skin) ** 2)
+    new = jax.lax.cond(rebuilt, lambda: rebuild(cfg, nbrs, xs), lambda: nbrs)
     return new, rebuilt
+
+
+def rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
+    """The Dense list of jax-md (same rows, same order) from positions ``xs`` already in
+    the list's frame, with one distance pass instead of two.
+
+    jax-md's cell list gives each particle the 3×3 cells' 9·C candidates; jax-md then
+    masks them by distance, *gathers the positions again* to recompute the same distances,
+    and compacts the (N, 9C) rows with a scatter of the same width. Here the first mask is
+    kept and the valid candidates are scattered straight into the K slots (slot K, cut
+    off, takes the rest); more than K valid neighbours set the overflow flag as jax-md
+    does. 6.9k-particle dam break: 11.4 ms against jax-md's 35 ms as a jitted call of its
+    own; inside the compiled chunk about 7 against 9 ms per rebuild (README "Speed")."""
+    n, dim = xs.shape
+    cl = nbrs.cell_list_fn.update(xs, nbrs.cell_list_capacity)
+    cap = cl.id_buffer.shape[dim]
+    buf_shape = cl.id_buffer.shape[:dim]
+    per_side = jnp.array(buf_shape[::-1], jnp.int32)
+    shifts = jnp.asarray(_NEIGHBOUR_CELLS[dim])
+    cells = jnp.mod(cl.particle_cell_id[:, None, :] + shifts[None], per_side[None, None])
+    mult = jnp.array([int(np.prod(buf_shape[dim - i:])) for i in range(dim)], jnp.int32)
+    flat = jnp.sum(cells * mult, axis=2).reshape(-1)
+    cand = cl.id_buffer.reshape((-1, cap))[flat].reshape(n, -1)
+    cpos = cl.position_buffer.reshape((-1, cap, dim))[flat].reshape(n, -1, dim)
+    r2 = jnp.sum((xs[:, None, :] - cpos) ** 2, axis=-1)
+    cut = cfg.r_cut + cfg.skin
+    valid = (r2 < cut * cut) & (cand < n) & (cand != jnp.arange(n)[:, None])
+    count = jnp.cumsum(valid, axis=1, dtype=jnp.int32)
+    k = nbrs.idx.shape[1]
+    slot = jnp.where(valid & (count <= k), count - 1, k)
+    rows = jnp.arange(n)[:, None]
+    idx = jnp.full((n, k + 1), n, jnp.int32).at[rows, slot].set(cand)[:, :k]
+    err = nbrs.error.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW,
+                            cl.did_buffer_overflow)
+    err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
+                     jnp.max(count[:, -1]) > k)
+    return nbrs.set(idx=idx, reference_position=xs, error=err)
+
+
+# jax-md's neighbouring-cell offsets, in its order (partition._neighboring_cells_arr)
+_NEIGHBOUR_CELLS = {d: np.stack(np.meshgrid(*[np.arange(-1, 2)] * d, indexing="ij"),
+                                axis=-1).reshape(-1, d).astype(np.int32) for d in (2, 3)}
 
 
 def overflowed(nbrs: partition.NeighborList) -> bool:

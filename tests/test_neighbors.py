@@ -54,3 +54,56 @@ def test_grow_adds_room():
     bigger = neighbors.allocate(neighbors.grow(phys.neighbors, nb), x)
     assert neighbors.capacity(bigger) > neighbors.capacity(nb)
     assert not neighbors.overflowed(nb)
+
+
+def _dam_break_list():
+    import jax.numpy as jnp
+    from fpsi_jax.scene import Physics
+    sc = scenes.build("dam_break", dx=0.01)
+    cfg = Physics.for_scene(sc).neighbors
+    x = jnp.asarray(np.concatenate([sc.fluid.x, sc.boundary.x]), jnp.float32)
+    return cfg, neighbors.shift(cfg, x), neighbors.allocate(cfg, x)
+
+
+def test_rebuild_equals_jax_md_dense_list():
+    """neighbors.rebuild gives jax-md's own Dense list, row for row and in order, for
+    positions moved by up to a few skins (its one-mask compaction replaces jax-md's
+    second distance pass and wide scatter)."""
+    import jax
+    import jax.numpy as jnp
+    cfg, xs, nbrs = _dam_break_list()
+    rng = np.random.default_rng(3)
+    for scale in (0.3, 1.0, 3.0):
+        xp = xs + jnp.asarray(rng.normal(0.0, scale * cfg.skin, xs.shape), xs.dtype)
+        want = neighbors.neighbor_fns(cfg).update(
+            xp, nbrs.set(reference_position=nbrs.reference_position + 1e3))
+        got = jax.jit(lambda p: neighbors.rebuild(cfg, nbrs, p))(xp)
+        np.testing.assert_array_equal(np.asarray(got.idx), np.asarray(want.idx))
+        assert bool(got.did_buffer_overflow) == bool(want.did_buffer_overflow)
+        np.testing.assert_array_equal(np.asarray(got.reference_position), np.asarray(xp))
+
+
+def test_rebuild_flags_overflow_like_jax_md():
+    """Squeezing the particles towards the column's centre overflows the K slots: both
+    jax-md and neighbors.rebuild raise the flag (the host then grows the list)."""
+    import jax.numpy as jnp
+    cfg, xs, nbrs = _dam_break_list()
+    c = xs.mean(axis=0)
+    xp = c + 0.6 * (xs - c)
+    want = neighbors.neighbor_fns(cfg).update(
+        xp, nbrs.set(reference_position=nbrs.reference_position + 1e3))
+    got = neighbors.rebuild(cfg, nbrs, xp)
+    assert bool(want.did_buffer_overflow) and bool(got.did_buffer_overflow)
+
+
+def test_update_rebuilds_only_past_half_the_skin():
+    import jax.numpy as jnp
+    cfg, xs, nbrs = _dam_break_list()
+    d = jnp.zeros_like(xs).at[7, 0].set(0.49 * cfg.skin)
+    same, rebuilt = neighbors.update(cfg, nbrs, xs + d + jnp.asarray(cfg.origin, xs.dtype))
+    assert not bool(rebuilt)
+    np.testing.assert_array_equal(np.asarray(same.reference_position), np.asarray(xs))
+    d = d.at[7, 0].set(0.51 * cfg.skin)
+    new, rebuilt = neighbors.update(cfg, nbrs, xs + d + jnp.asarray(cfg.origin, xs.dtype))
+    assert bool(rebuilt)
+    np.testing.assert_array_equal(np.asarray(new.reference_position), np.asarray(xs + d))
