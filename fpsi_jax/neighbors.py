@@ -55,6 +55,9 @@ def update(cfg: NeighborConfig, nbrs: partition.NeighborList, x):
     ``nbrs.update``: rebuilt (:func:`rebuild`) only once a particle has moved more than
     skin/2 since the last build."""
     xs = shift(cfg, x)
+    if nbrs.cell_list_fn is None:        # domain < 3 cut-offs: jax-md's O(N²) search
+        new = nbrs.update(xs)
+        return new, jnp.any(new.reference_position != nbrs.reference_position)
     moved = jnp.sum((xs - nbrs.reference_position) ** 2, axis=-1)
     rebuilt = jnp.any(moved > (0.5 * cfg.skin) ** 2)
     new = jax.lax.cond(rebuilt, lambda: rebuild(cfg, nbrs, xs), lambda: nbrs)

@@ -107,3 +107,24 @@ def test_update_rebuilds_only_past_half_the_skin():
     new, rebuilt = neighbors.update(cfg, nbrs, xs + d + jnp.asarray(cfg.origin, xs.dtype))
     assert bool(rebuilt)
     np.testing.assert_array_equal(np.asarray(new.reference_position), np.asarray(xs + d))
+
+
+def test_update_without_a_cell_list_uses_jax_md():
+    """A domain under 3 cut-offs has no cell list (jax-md's O(N²) search): update falls
+    back to jax-md's own and still rebuilds past half the skin."""
+    import warnings
+    import jax.numpy as jnp
+    from fpsi_jax.scene import Physics
+    sc = scenes.build("hydrostatic_tank", dx=0.02, depth=0.06, width=0.06)
+    import dataclasses
+    cfg = dataclasses.replace(Physics.for_scene(sc).neighbors, skin=0.06)  # 3 cut-offs > box
+    x = jnp.asarray(np.concatenate([sc.fluid.x, sc.boundary.x]), jnp.float32)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        nbrs = neighbors.allocate(cfg, x)
+    assert nbrs.cell_list_fn is None
+    d = jnp.zeros_like(x).at[0, 0].set(0.6 * cfg.skin)
+    new, rebuilt = neighbors.update(cfg, nbrs, x + d)
+    assert bool(rebuilt)
+    want = neighbors.neighbor_fns(cfg).update(neighbors.shift(cfg, x + d), nbrs)
+    np.testing.assert_array_equal(np.asarray(new.idx), np.asarray(want.idx))
