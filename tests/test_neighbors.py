@@ -73,11 +73,12 @@ def test_rebuild_equals_jax_md_dense_list():
     import jax.numpy as jnp
     cfg, xs, nbrs = _dam_break_list()
     rng = np.random.default_rng(3)
+    stale = nbrs.set(reference_position=nbrs.reference_position + 1e3)  # forces a rebuild
+    jax_md = jax.jit(lambda p: neighbors.neighbor_fns(cfg).update(p, stale))
+    ours = jax.jit(lambda p: neighbors.rebuild(cfg, nbrs, p))
     for scale in (0.3, 1.0, 3.0):
         xp = xs + jnp.asarray(rng.normal(0.0, scale * cfg.skin, xs.shape), xs.dtype)
-        want = neighbors.neighbor_fns(cfg).update(
-            xp, nbrs.set(reference_position=nbrs.reference_position + 1e3))
-        got = jax.jit(lambda p: neighbors.rebuild(cfg, nbrs, p))(xp)
+        want, got = jax_md(xp), ours(xp)
         np.testing.assert_array_equal(np.asarray(got.idx), np.asarray(want.idx))
         assert bool(got.did_buffer_overflow) == bool(want.did_buffer_overflow)
         np.testing.assert_array_equal(np.asarray(got.reference_position), np.asarray(xp))
