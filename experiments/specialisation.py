@@ -127,8 +127,9 @@ CASES = {
     "fpsi_failure": ("fpsi_failure", dict(dx=0.004, dx_boundary=0.0025, h0=0.005), {}, 10),
 }
 DEFAULT_STEPS = 100
+# switch: the Params.sph coefficient that zeroes it
 SPH_SWITCHES = {"xsph": "eps_xsph", "anticlump": "r_clump", "delta_sph": "delta",
-                "artificial_viscosity": "alpha", "wall_repulsion": "wall_beta"}     # switch: the Params.sph coefficient
+                "artificial_viscosity": "alpha", "wall_repulsion": "wall_beta"}
 SCOPES = ("sph.", "boundary.", "dem.", "bonds", "fsi.", "fpi.", "neighbors.")
 
 

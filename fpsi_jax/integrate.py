@@ -607,7 +607,7 @@ def sph_dt(scene: Scene, params: Params, a_max: float | None = None) -> float:
     cfl = FSI_SPH_CFL if scene.fsi_coupled else SPH_CFL
     bounds += [cfl * h / (c + scene.v_max), 0.25 * np.sqrt(h / acc)]
     beta, r0 = float(sp.wall_beta), scene.wall_range()
-    if r0 > 0 and scene.options.get("wall_repulsion", True) and beta > 0:
+    if r0 > 0 and scene.options.get("wall_repulsion", Physics.wall_repulsion) and beta > 0:
         # the wall backstop's stiffness is at most β c0²/r0² (sph.wall_repulsion_scalar);
         # leapfrog needs Δt < 2 r0/(c0 √β), kept with a factor 2 of margin
         bounds.append(r0 / (c * math.sqrt(beta)))
