@@ -72,7 +72,7 @@ class Calibration:
         for _ in range(6):
             out = self._fns[kind](z, self.problem.state0, self.problem.params)
             status = out[0][1][1] if kind == "value_and_grad" else out[1][1]
-            if bool(status.overflow) or bool(status.h_exceeded):
+            if status.must_redo():
                 final, _ = jax.jit(self.problem.run)(self.space.params(z, self.problem.params))
                 self.problem = self.problem.regrown(final)
                 self._build()

@@ -136,7 +136,7 @@ def check_status(final: State, dt: float) -> str | None:
     """'overflow' if a neighbour list overflowed (the caller regrows and redoes), None if
     all is well; raises :class:`SimulationError` for an unstable run."""
     st = final.status
-    if bool(st.overflow) or bool(st.h_exceeded):
+    if st.must_redo():
         return "overflow"
     if bool(st.bad):
         code = int(st.code)

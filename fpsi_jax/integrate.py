@@ -397,6 +397,10 @@ def step(phys: Physics, state: State, params: Params) -> State:
                         rebuilds=st.rebuilds + rebuilt.astype(jnp.int32))
         st = _check(phys, params, fluid, n, st)
         new = new.replace(fluid=fluid, boundary=b, nbrs=nbrs, fsi=fs, fpi=fp)
+    # the first step that is not exact: an overflowed list dropped pairs of this step; an
+    # h past the cut-off (the new h) would drop pairs of the next one
+    st = st.replace(redo_step=jnp.where((st.redo_step < 0) & (st.overflow | st.h_exceeded),
+                                        jnp.where(st.overflow, n, n + 1), st.redo_step))
     return new.replace(status=st)
 
 

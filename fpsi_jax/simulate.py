@@ -180,7 +180,7 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
             if done == 0:
                 compile_s = time.perf_counter() - t0   # compile + first chunk
                 first = n
-            if bool(new.status.overflow) or bool(new.status.h_exceeded):
+            if new.status.must_redo():
                 phys = grow(phys, new)
                 state = reallocate(phys, state)
                 reallocs += 1

@@ -138,6 +138,8 @@ class Status:
     bad/step/particle/code  first step where a particle went bad, and which one and why
     overflow                the neighbour list overflowed (the chunk must be redone)
     h_exceeded              a smoothing length outgrew the neighbour cut-off (redo)
+    redo_step               first step not computed exactly: an overflow's step, or the step
+                            after h outgrew the cut-off (−1: none)
     rebuilds                number of neighbour-list rebuilds so far
     """
 
@@ -148,13 +150,25 @@ class Status:
     overflow: Any
     h_exceeded: Any
     rebuilds: Any
+    redo_step: Any
 
     @staticmethod
     def ok():
         z = jnp.zeros((), jnp.int32)
         f = jnp.zeros((), bool)
         return Status(bad=f, step=z - 1, particle=z - 1, code=z, overflow=f, h_exceeded=f,
-                      rebuilds=z)
+                      rebuilds=z, redo_step=z - 1)
+
+    def must_redo(self) -> bool:
+        """Host side: the chunk must be redone with larger lists, i.e. a list overflowed
+        (or h outgrew the cut-off) and no particle had gone bad before the first step
+        that this made inexact (``redo_step``). A run
+        that went unstable first is diagnosed as such: its state up to the bad step was
+        computed with every pair, and regrowing the lists of a blown-up run only compiles
+        ever larger programs (6 regrowths, 11 s, for the tank at 12× its step)."""
+        if not (bool(self.overflow) or bool(self.h_exceeded)):
+            return False
+        return not (bool(self.bad) and int(self.step) < int(self.redo_step))
 
 
 @pytree_dataclass

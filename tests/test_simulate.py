@@ -81,3 +81,42 @@ def test_last_short_chunk_reuses_the_compiled_chunk_and_equals_a_rollout(tiny_ta
     np.testing.assert_array_equal(np.asarray(o_tail)[:4], np.asarray(o_ref))
     np.testing.assert_array_equal(np.asarray(o_tail)[4:], 0.0)
     np.testing.assert_array_equal(np.asarray(o_full)[:4], np.asarray(o_ref))
+
+
+@pytest.mark.parametrize("bad_step, overflow, h_exceeded, redo_step, expected", [
+    (-1, True, False, 5, True),     # a plain overflow: regrow and redo
+    (3, False, True, 4, False),     # bad at 3, h outgrew the cut-off at 3 (inexact from 4)
+    (3, True, False, 3, True),      # bad in the very step whose list overflowed: redo
+    (6, True, False, 5, True),      # bad after the overflow: maybe its consequence, redo
+    (3, False, False, -1, False),   # bad, nothing overflowed: diagnose
+])
+def test_a_run_bad_before_its_lists_overflowed_is_diagnosed_not_regrown(
+        bad_step, overflow, h_exceeded, redo_step, expected):
+    import jax.numpy as jnp
+
+    from fpsi_jax.state import Status
+    st = Status.ok().replace(bad=jnp.asarray(bad_step >= 0), step=jnp.int32(bad_step),
+                             overflow=jnp.asarray(overflow),
+                             h_exceeded=jnp.asarray(h_exceeded),
+                             redo_step=jnp.int32(redo_step))
+    assert st.must_redo() is expected
+
+
+def test_redo_step_marks_the_first_inexact_step():
+    """Overflow: that very step dropped pairs; h past the cut-off: the next one would."""
+    import jax.numpy as jnp
+
+    from fpsi_jax import integrate
+    from fpsi_jax.simulate import setup
+    sc = scenes.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1)
+    phys, params = setup(sc)
+    p = params.as_arrays(jnp.float32)
+    s0 = integrate.init_state(sc, phys, p)
+    s1 = integrate.step(phys, s0, p)
+    assert int(s1.status.redo_step) == -1
+    # a cut-off that the initial h already exceeds: h_exceeded at step 1, inexact from 2
+    import dataclasses
+    tight = dataclasses.replace(phys, neighbors=dataclasses.replace(
+        phys.neighbors, r_cut=float(sc.fluid.h.max())))
+    s1 = integrate.step(tight, s0, p)
+    assert bool(s1.status.h_exceeded) and int(s1.status.redo_step) == 2
