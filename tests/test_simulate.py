@@ -1,5 +1,6 @@
 """Host driver: unstable runs stop with a diagnosis and leave a valid, finite file."""
 import h5py
+import jax
 import numpy as np
 import pytest
 
@@ -112,11 +113,25 @@ def test_redo_step_marks_the_first_inexact_step():
     phys, params = setup(sc)
     p = params.as_arrays(jnp.float32)
     s0 = integrate.init_state(sc, phys, p)
-    s1 = integrate.step(phys, s0, p)
+    step = jax.jit(integrate.step, static_argnums=0)
+    s1 = step(phys, s0, p)
     assert int(s1.status.redo_step) == -1
     # a cut-off that the initial h already exceeds: h_exceeded at step 1, inexact from 2
     import dataclasses
     tight = dataclasses.replace(phys, neighbors=dataclasses.replace(
         phys.neighbors, r_cut=float(sc.fluid.h.max())))
-    s1 = integrate.step(tight, s0, p)
+    s1 = step(tight, s0, p)
     assert bool(s1.status.h_exceeded) and int(s1.status.redo_step) == 2
+
+
+def test_a_second_run_of_the_same_scene_compiles_nothing(tiny_tank):
+    """Fresh neighbour lists of the same capacity are the same pytree to jax.jit: a second
+    simulate (a sweep, a calibration, validate) reuses the compiled chunk and set-up."""
+    from fpsi_jax import integrate
+    from fpsi_jax.simulate import _advance
+    simulate(tiny_tank, t_end=0.004, every=0.002, progress=False)
+    n_adv, n_init = _advance._cache_size(), integrate._initial_rates._cache_size()
+    res = simulate(tiny_tank, t_end=0.004, every=0.002, progress=False)
+    assert res.n_steps > 0
+    assert _advance._cache_size() == n_adv
+    assert integrate._initial_rates._cache_size() == n_init
