@@ -26,30 +26,30 @@ from .scene import NeighborConfig
 
 
 @functools.lru_cache(maxsize=64)
-def neighbor_fns(cfg: NeighborConfig) -> partition.NeighborListFns:
-    """The jax-md allocate/update pair for ``cfg`` (cached: same cfg → same functions, so a
-    reallocated list does not trigger a recompile unless its capacity changed)."""
+def _family(cfg: NeighborConfig):
+    """(jax-md allocate/update pair for ``cfg``, memo of the cell-list closure its first
+    allocation made); cached, so the same cfg gives the same functions."""
     displacement, _ = space.free()
     box = np.asarray(cfg.box, dtype=np.float64)
     if np.any(box < 3.0 * (cfg.r_cut + cfg.skin)):
         warnings.warn(
             f"domain {tuple(box)} is smaller than 3 x cut-off {cfg.r_cut + cfg.skin:.4g} in "
-            "some direction: jax-md falls back to an O(N^2) neighbour search", stacklevel=2)
-    return partition.neighbor_list(
+            "some direction: jax-md falls back to an O(N^2) neighbour search", stacklevel=3)
+    fns = partition.neighbor_list(
         displacement, jnp.asarray(box), cfg.r_cut, dr_threshold=cfg.skin,
         capacity_multiplier=cfg.capacity_multiplier, format=partition.Dense)
+    return fns, {}
+
+
+def neighbor_fns(cfg: NeighborConfig) -> partition.NeighborListFns:
+    """The jax-md allocate/update pair for ``cfg`` (cached: same cfg → same functions, so a
+    reallocated list does not trigger a recompile unless its capacity changed)."""
+    return _family(cfg)[0]
 
 
 def shift(cfg: NeighborConfig, x):
     """Scene coordinates → the list's [0, box) frame."""
     return x - jnp.asarray(cfg.origin, dtype=x.dtype)
-
-
-@functools.lru_cache(maxsize=64)
-def cell_list_fns(cfg: NeighborConfig) -> partition.CellListFns:
-    """The jax-md cell list of ``cfg``'s lists (cached), the one jax-md's allocate makes."""
-    return partition.cell_list(jnp.asarray(np.asarray(cfg.box, dtype=np.float64)),
-                               cfg.r_cut + cfg.skin, cfg.capacity_multiplier)
 
 
 def allocate(cfg: NeighborConfig, x) -> partition.NeighborList:
@@ -58,11 +58,13 @@ def allocate(cfg: NeighborConfig, x) -> partition.NeighborList:
     jax-md's allocate makes a new cell-list closure each call, and the list carries it as
     static pytree data: every fresh list then looked new to ``jax.jit``, so each
     ``simulate`` call (and each reallocation to the same capacity) traced and compiled its
-    programs again (the tiny tank: 2 programs, 1.3 s, on every run). The closure is swapped
-    for one cached per ``cfg``; it is the same function of the same arguments."""
-    nbrs = neighbor_fns(cfg).allocate(shift(cfg, x), extra_capacity=cfg.extra_capacity)
+    programs again (the tiny tank: 2 programs, 1.3 s, on every run). Every list of ``cfg``
+    now carries the closure of its first allocation: the same cell grid (jax-md builds it
+    from the same box), so the same function of the same arguments."""
+    fns, memo = _family(cfg)
+    nbrs = fns.allocate(shift(cfg, x), extra_capacity=cfg.extra_capacity)
     if nbrs.cell_list_fn is not None:
-        nbrs = nbrs.set(cell_list_fn=cell_list_fns(cfg))
+        nbrs = nbrs.set(cell_list_fn=memo.setdefault("cell_list_fn", nbrs.cell_list_fn))
     return nbrs
 
 

@@ -56,10 +56,14 @@ def _evaluate(method, xf, vf, rhof, xs, vs, acc_s=None, mu=0.0, flags=None, sp=N
                   p=jnp.zeros(ns) if p_s is None else p_s, force=jnp.zeros((ns, 2)))
     nbrs = types.SimpleNamespace(idx=_dense(np.concatenate([xf, xs]), 2 * H))
     acc_s = jnp.zeros_like(jnp.asarray(xs)) if acc_s is None else acc_s
-    out = integrate.fluid_update(phys, params, jnp.asarray(xf), jnp.asarray(vf),
-                                 jnp.asarray(rhof), jnp.full(nf, H), m_f, None, nbrs, 0.0,
-                                 (jnp.asarray(xs), jnp.asarray(vs), acc_s, fs))
-    return out[:6], m_f, fs
+
+    @jax.jit          # one compiled program instead of ~100 eagerly dispatched primitives
+    def update(params, xf, vf, rhof, xs, vs, acc_s, fs):
+        return integrate.fluid_update(phys, params, xf, vf, rhof, jnp.full(nf, H), m_f, None,
+                                      nbrs, 0.0, (xs, vs, acc_s, fs))[:6]
+
+    out = update(params, *(jnp.asarray(a) for a in (xf, vf, rhof, xs, vs)), acc_s, fs)
+    return out, m_f, fs
 
 
 def _p(rho):
