@@ -27,18 +27,24 @@ from .scene import NeighborConfig
 
 @functools.lru_cache(maxsize=64)
 def _family(cfg: NeighborConfig):
-    """(jax-md allocate/update pair for ``cfg``, memo of the cell-list closure its first
-    allocation made); cached, so the same cfg gives the same functions."""
+    """(jax-md allocate/update pair for ``cfg``, the cell list its lists use, or None
+    when the domain is too small for one, the box array both were given); cached, so the same cfg gives the same
+    functions. The cell list is built from the same box, cut-off and multiplier as the one
+    jax-md's allocate makes (partition.neighbor_list_fn), so it has the same grid."""
     displacement, _ = space.free()
     box = np.asarray(cfg.box, dtype=np.float64)
     if np.any(box < 3.0 * (cfg.r_cut + cfg.skin)):
         warnings.warn(
             f"domain {tuple(box)} is smaller than 3 x cut-off {cfg.r_cut + cfg.skin:.4g} in "
             "some direction: jax-md falls back to an O(N^2) neighbour search", stacklevel=3)
+    box_arr = jnp.asarray(box)
     fns = partition.neighbor_list(
-        displacement, jnp.asarray(box), cfg.r_cut, dr_threshold=cfg.skin,
+        displacement, box_arr, cfg.r_cut, dr_threshold=cfg.skin,
         capacity_multiplier=cfg.capacity_multiplier, format=partition.Dense)
-    return fns, {}
+    cells = None
+    if not np.any(box < 3.0 * (cfg.r_cut + cfg.skin)):   # jax-md's condition for a cell list
+        cells = partition.cell_list(box_arr, cfg.r_cut + cfg.skin, cfg.capacity_multiplier)
+    return fns, cells, box_arr
 
 
 def neighbor_fns(cfg: NeighborConfig) -> partition.NeighborListFns:
@@ -53,19 +59,52 @@ def shift(cfg: NeighborConfig, x):
 
 
 def allocate(cfg: NeighborConfig, x) -> partition.NeighborList:
-    """Build a list for positions ``x`` (host side, not jittable).
+    """Build a list for positions ``x`` (host side, not jittable): jax-md's Dense list with
+    jax-md's capacities (tested equal to ``neighbor_fns(cfg).allocate``).
 
-    jax-md's allocate makes a new cell-list closure each call, and the list carries it as
-    static pytree data: every fresh list then looked new to ``jax.jit``, so each
-    ``simulate`` call (and each reallocation to the same capacity) traced and compiled its
-    programs again (the tiny tank: 2 programs, 1.3 s, on every run). Every list of ``cfg``
-    now carries the closure of its first allocation: the same cell grid (jax-md builds it
-    from the same box), so the same function of the same arguments."""
-    fns, memo = _family(cfg)
-    nbrs = fns.allocate(shift(cfg, x), extra_capacity=cfg.extra_capacity)
-    if nbrs.cell_list_fn is not None:
-        nbrs = nbrs.set(cell_list_fn=memo.setdefault("cell_list_fn", nbrs.cell_list_fn))
-    return nbrs
+    jax-md's allocate runs eagerly, so each new particle count compiled its ~60 primitives
+    one by one (1.4 s for a dam break); here the cell occupancy and the rows are computed by
+    two jitted programs. jax-md also makes a new cell-list closure each call and the list
+    carries it as static pytree data, so every fresh list looked new to ``jax.jit`` and each
+    ``simulate`` call traced and compiled its programs again; every list of ``cfg`` now
+    carries the one cached cell list. A domain under 3 cut-offs keeps jax-md's allocate."""
+    fns, cells, _ = _family(cfg)
+    xs = shift(cfg, x)
+    if cells is None:
+        return fns.allocate(xs, extra_capacity=cfg.extra_capacity)
+    n = xs.shape[0]
+    # jax-md's cell capacity: the fullest cell × multiplier, + extra
+    cell_cap = int(int(_fullest_cell(cfg, xs)) * cfg.capacity_multiplier) + cfg.extra_capacity
+    idx, occupancy, cell_over = _allocation_rows(cells, xs, cfg.r_cut + cfg.skin, cell_cap)
+    occupancy = int(occupancy)
+    k = min(int(occupancy * cfg.capacity_multiplier + cfg.extra_capacity), idx.shape[1], n - 1)
+    err = partition.PartitionError(jnp.zeros((), jnp.uint8))
+    err = err.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW, cell_over)
+    err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
+                     jnp.asarray(occupancy > k))
+    return partition.NeighborList(idx[:, :k], xs, err, cell_cap, k, partition.Dense,
+                                  cfg.r_cut + cfg.skin, cells, fns.update)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _fullest_cell(cfg: NeighborConfig, xs):
+    """The particle count of the fullest cell, counted as jax-md's allocation estimates it
+    (partition._estimate_cell_capacity: on the grid of its actual cell size, which rounding
+    can make one cell per side coarser than the list's own grid)."""
+    box = np.array(_family(cfg)[2]).reshape(1, -1)           # as partition.cell_list does
+    _, cell_size, _, _ = partition._cell_dimensions(xs.shape[1], box, cfg.r_cut + cfg.skin)
+    return jnp.max(partition.count_cell_filling(xs, box, cell_size))
+
+
+@functools.partial(jax.jit, static_argnums=(0, 2, 3))
+def _allocation_rows(cells, xs, cut, cell_capacity):
+    """Every neighbour of every particle (the full 3^d·C candidate width), their largest
+    count and the cell-list overflow flag."""
+    cl = cells.update(xs, cell_capacity)
+    dim = xs.shape[1]
+    width = cl.id_buffer.shape[dim] * 3 ** dim          # id_buffer: (cells…, C, 1)
+    idx, occupancy = _dense_rows(cl, xs, cut, width)
+    return idx, occupancy, cl.did_buffer_overflow
 
 
 def update(cfg: NeighborConfig, nbrs: partition.NeighborList, x):
@@ -93,8 +132,19 @@ def rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
     off, takes the rest); more than K valid neighbours set the overflow flag as jax-md
     does. 6.9k-particle dam break: 11.4 ms against jax-md's 35 ms as a jitted call of its
     own; inside the compiled chunk about 7 against 9 ms per rebuild (README "Speed")."""
-    n, dim = xs.shape
     cl = nbrs.cell_list_fn.update(xs, nbrs.cell_list_capacity)
+    idx, occupancy = _dense_rows(cl, xs, cfg.r_cut + cfg.skin, nbrs.idx.shape[1])
+    err = nbrs.error.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW,
+                            cl.did_buffer_overflow)
+    err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
+                     occupancy > nbrs.idx.shape[1])
+    return nbrs.set(idx=idx, reference_position=xs, error=err)
+
+
+def _dense_rows(cl, xs, cut, k):
+    """The first ``k`` neighbours (in jax-md's candidate order) of every particle from the
+    cell list ``cl``, padding = N, and the largest number of neighbours of a particle."""
+    n, dim = xs.shape
     cap = cl.id_buffer.shape[dim]
     buf_shape = cl.id_buffer.shape[:dim]
     per_side = jnp.array(buf_shape[::-1], jnp.int32)
@@ -105,18 +155,12 @@ def rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
     cand = cl.id_buffer.reshape((-1, cap))[flat].reshape(n, -1)
     cpos = cl.position_buffer.reshape((-1, cap, dim))[flat].reshape(n, -1, dim)
     r2 = jnp.sum((xs[:, None, :] - cpos) ** 2, axis=-1)
-    cut = cfg.r_cut + cfg.skin
     valid = (r2 < cut * cut) & (cand < n) & (cand != jnp.arange(n)[:, None])
     count = _running_count(valid, cells.shape[1], cap)
-    k = nbrs.idx.shape[1]
     slot = jnp.where(valid & (count <= k), count - 1, k)
     rows = jnp.arange(n)[:, None]
     idx = jnp.full((n, k + 1), n, jnp.int32).at[rows, slot].set(cand)[:, :k]
-    err = nbrs.error.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW,
-                            cl.did_buffer_overflow)
-    err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
-                     jnp.max(count[:, -1]) > k)
-    return nbrs.set(idx=idx, reference_position=xs, error=err)
+    return idx, jnp.max(count[:, -1])
 
 
 def _running_count(valid, n_cells, cap):
