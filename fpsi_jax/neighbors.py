@@ -37,7 +37,7 @@ def _family(cfg: NeighborConfig):
         warnings.warn(
             f"domain {tuple(box)} is smaller than 3 x cut-off {cfg.r_cut + cfg.skin:.4g} in "
             "some direction: jax-md falls back to an O(N^2) neighbour search", stacklevel=3)
-    box_arr = jnp.asarray(box)
+    box_arr = jnp.asarray(box, jnp.float32)       # jax-md's neighbor_list casts it so (f32)
     fns = partition.neighbor_list(
         displacement, box_arr, cfg.r_cut, dr_threshold=cfg.skin,
         capacity_multiplier=cfg.capacity_multiplier, format=partition.Dense)

@@ -146,15 +146,27 @@ def test_running_count_equals_cumsum_exactly():
         np.testing.assert_array_equal(got, jnp.cumsum(valid, axis=1, dtype=jnp.int32))
 
 
-@pytest.mark.parametrize("scene, kw, extra", [
-    ("dam_break", {"dx": 0.01}, 0),
-    ("dam_break", {"dx": 0.01}, 7),
-    ("hydrostatic_plate", {"dx": 0.0035, "d": 0.0025, "dx_boundary": 0.0025}, 0),
+@pytest.mark.parametrize("scene, kw, extra, x64", [
+    ("dam_break", {"dx": 0.01}, 0, False),
+    ("dam_break", {"dx": 0.01}, 7, False),
+    ("dam_break", {"dx": 0.01}, 0, True),
+    ("hydrostatic_plate", {"dx": 0.0035, "d": 0.0025, "dx_boundary": 0.0025}, 0, False),
 ])
-def test_allocate_equals_jax_md_allocate(scene, kw, extra):
+def test_allocate_equals_jax_md_allocate(scene, kw, extra, x64):
     """neighbors.allocate (two jitted programs) gives jax-md's eager allocation: the same
     rows in the same order, the same capacities, the same flags; for the SPH family and
-    the DEM contacts, with and without extra capacity."""
+    the DEM contacts, with and without extra capacity, and with float64 enabled (jax-md
+    builds its grid from a float32 box whatever the mode)."""
+    import jax
+    prev = jax.config.jax_enable_x64
+    jax.config.update("jax_enable_x64", x64)
+    try:
+        _check_allocate_equals_jax_md(scene, kw, extra)
+    finally:
+        jax.config.update("jax_enable_x64", prev)
+
+
+def _check_allocate_equals_jax_md(scene, kw, extra):
     import dataclasses
 
     import jax.numpy as jnp
