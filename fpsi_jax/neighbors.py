@@ -36,7 +36,7 @@ def _family(cfg: NeighborConfig):
     and multiplier as the one jax-md's allocate makes, so it has the same grid."""
     displacement, _ = space.free()
     box = np.asarray(cfg.box, dtype=np.float64)
-    cut = cfg.r_cut + cfg.skin
+    cut = cfg.list_radius
     small = bool(np.any(box < 3.0 * cut))   # jax-md's condition for no cell list
     if small:
         warnings.warn(
@@ -78,7 +78,7 @@ def allocate(cfg: NeighborConfig, x) -> partition.NeighborList:
     n = xs.shape[0]
     # jax-md's cell capacity: the fullest cell × multiplier, + extra
     cell_cap = int(int(_fullest_cell(cfg, xs)) * cfg.capacity_multiplier) + cfg.extra_capacity
-    idx, occupancy, cell_over = _allocation_rows(cells, xs, cfg.r_cut + cfg.skin, cell_cap)
+    idx, occupancy, cell_over = _allocation_rows(cells, xs, cfg.list_radius, cell_cap)
     occupancy = int(occupancy)
     k = min(int(occupancy * cfg.capacity_multiplier + cfg.extra_capacity), idx.shape[1], n - 1)
     err = partition.PartitionError(jnp.zeros((), jnp.uint8))
@@ -86,7 +86,7 @@ def allocate(cfg: NeighborConfig, x) -> partition.NeighborList:
     err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
                      jnp.asarray(occupancy > k))
     return partition.NeighborList(idx[:, :k], xs, err, cell_cap, k, partition.Dense,
-                                  cfg.r_cut + cfg.skin, cells, fns.update)
+                                  cfg.list_radius, cells, fns.update)
 
 
 @functools.partial(jax.jit, static_argnums=0)
@@ -95,7 +95,7 @@ def _fullest_cell(cfg: NeighborConfig, xs):
     (partition._estimate_cell_capacity: on the grid of its actual cell size, which rounding
     can make one cell per side coarser than the list's own grid)."""
     box = np.array(_family(cfg)[2]).reshape(1, -1)           # as partition.cell_list does
-    _, cell_size, _, _ = partition._cell_dimensions(xs.shape[1], box, cfg.r_cut + cfg.skin)
+    _, cell_size, _, _ = partition._cell_dimensions(xs.shape[1], box, cfg.list_radius)
     return jnp.max(partition.count_cell_filling(xs, box, cell_size))
 
 
@@ -133,10 +133,10 @@ def rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
     and compacts the (N, 9C) rows with a scatter of the same width. Here the first mask is
     kept and the valid candidates are scattered straight into the K slots (slot K, cut
     off, takes the rest); more than K valid neighbours set the overflow flag as jax-md
-    does. 6.9k-particle dam break: 11.4 ms against jax-md's 35 ms as a jitted call of its
-    own; inside the compiled chunk about 7 against 9 ms per rebuild (README "Speed")."""
+    does, and the running count is :func:`_running_count`. 6.9k-particle dam break, as a
+    jitted call of its own: 7.4–7.8 ms against jax-md's 29–35 ms (README "Speed")."""
     cl = nbrs.cell_list_fn.update(xs, nbrs.cell_list_capacity)
-    idx, occupancy = _dense_rows(cl, xs, cfg.r_cut + cfg.skin, nbrs.idx.shape[1])
+    idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, nbrs.idx.shape[1])
     err = nbrs.error.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW,
                             cl.did_buffer_overflow)
     err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,

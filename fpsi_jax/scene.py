@@ -287,6 +287,11 @@ class NeighborConfig:
     capacity_multiplier: float = 1.25
     extra_capacity: int = 0
 
+    @property
+    def list_radius(self) -> float:
+        """r_cut + skin: the radius pairs are listed within (jax-md's cell size too)."""
+        return self.r_cut + self.skin
+
 
 BOUNDARY_PRESSURE = ("fixed", "extrapolated")
 # reach of the wall backstop in wall/fluid spacings (Scene.wall_range): the first fluid

@@ -105,6 +105,8 @@ def test_a_run_bad_before_its_lists_overflowed_is_diagnosed_not_regrown(
 
 def test_redo_step_marks_the_first_inexact_step():
     """Overflow: that very step dropped pairs; h past the cut-off: the next one would."""
+    import dataclasses
+
     import jax.numpy as jnp
 
     from fpsi_jax import integrate
@@ -117,7 +119,6 @@ def test_redo_step_marks_the_first_inexact_step():
     s1 = step(phys, s0, p)
     assert int(s1.status.redo_step) == -1
     # a cut-off that the initial h already exceeds: h_exceeded at step 1, inexact from 2
-    import dataclasses
     tight = dataclasses.replace(phys, neighbors=dataclasses.replace(
         phys.neighbors, r_cut=float(sc.fluid.h.max())))
     s1 = step(tight, s0, p)
