@@ -1,5 +1,6 @@
-"""fpsi_jax._xla: the XLA:CPU fusion flag is set on import, the user's own setting wins, and
-importing after a backend started warns instead of silently doing nothing."""
+"""fpsi_jax._xla: the XLA:CPU flags are set on import, the user's own setting of a group wins,
+importing after a backend started warns instead of silently doing nothing, and the
+reassociation group keeps NaN and infinity visible to the driver's finiteness checks."""
 from __future__ import annotations
 
 import os
@@ -16,21 +17,35 @@ def _run(code, **env):
                           timeout=120)
 
 
-def test_import_sets_the_flag():
-    r = _run("import os, fpsi_jax; print(fpsi_jax.XLA_FAST_SUMS, os.environ['XLA_FLAGS'])")
+def test_import_sets_the_flags():
+    r = _run("import os, fpsi_jax; print(fpsi_jax.XLA_FAST_SUMS); print(os.environ['XLA_FLAGS'])")
     assert r.returncode == 0, r.stderr
-    assert r.stdout.split()[0] == "True" and _xla.FLAG in r.stdout
+    first, flags = r.stdout.splitlines()
+    assert first == "True"
+    assert flags.split() == list(_xla.FLAGS)
 
 
 def test_user_flags_are_kept():
-    r = _run("import os, fpsi_jax; print(fpsi_jax.XLA_FAST_SUMS, os.environ['XLA_FLAGS'])",
-             XLA_FLAGS="--xla_cpu_experimental_ynn_fusion_type=LIBRARY_FUSION_TYPE_REDUCE")
+    ynn = "--xla_cpu_experimental_ynn_fusion_type=LIBRARY_FUSION_TYPE_REDUCE"
+    r = _run("import os, fpsi_jax; print(fpsi_jax.XLA_FAST_SUMS); print(os.environ['XLA_FLAGS'])",
+             XLA_FLAGS=ynn)
     assert r.returncode == 0, r.stderr
-    assert r.stdout.split() == ["False",
-                                "--xla_cpu_experimental_ynn_fusion_type=LIBRARY_FUSION_TYPE_REDUCE"]
+    first, flags = r.stdout.splitlines()
+    # the user's YNN setting is kept as it is, the other group is still added
+    assert first == "False" and flags.split() == [ynn, *_xla.REASSOCIATE]
+    # any flag of the reassociation group given by the user: none of that group is added
+    r = _run("import os, fpsi_jax; print(fpsi_jax.XLA_FAST_SUMS); print(os.environ['XLA_FLAGS'])",
+             XLA_FLAGS="--xla_cpu_enable_fast_math=false")
+    first, flags = r.stdout.splitlines()
+    assert first == "False" and flags.split() == ["--xla_cpu_enable_fast_math=false", _xla.FLAG]
     r = _run("import os, fpsi_jax; print(fpsi_jax.XLA_FAST_SUMS, 'XLA_FLAGS' in os.environ)",
              FPSI_KEEP_XLA_FLAGS="1")
     assert r.stdout.split() == ["False", "False"]
+    # all of ours given by the user: in force, nothing added twice
+    r = _run("import os, fpsi_jax; print(fpsi_jax.XLA_FAST_SUMS); print(os.environ['XLA_FLAGS'])",
+             XLA_FLAGS=" ".join(_xla.FLAGS))
+    first, flags = r.stdout.splitlines()
+    assert first == "True" and flags.split() == list(_xla.FLAGS)
 
 
 def test_import_after_backend_start_warns():
@@ -39,3 +54,21 @@ def test_import_after_backend_start_warns():
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "False"
     assert "could not switch off" in r.stderr
+
+
+def test_reassociation_keeps_nan_and_inf():
+    """With the flags in force a jitted 0/0 is NaN, isnan/isfinite see it, a sum and a max
+    over it stay NaN, x/0 is inf (no reciprocal rewrite), and a float32 sum of integers is
+    still exact (the neighbour running count relies on that)."""
+    code = (
+        "import fpsi_jax, jax, jax.numpy as jnp\n"
+        "assert fpsi_jax.XLA_FAST_SUMS\n"
+        "f = jax.jit(lambda a, b: (jnp.isnan(a / b).all(), jnp.isfinite(a / b).any(),\n"
+        "    jnp.isnan(jnp.sum(a / b)), jnp.isnan(jnp.max(a / b)), jnp.isinf(1.0 / b).all(),\n"
+        "    jnp.isnan(jnp.minimum(a / b, 1.0)).all()))\n"
+        "print(*[bool(v) for v in f(jnp.zeros(64), jnp.zeros(64))])\n"
+        "n = jnp.arange(4096, dtype=jnp.float32)\n"
+        "print(int(jax.jit(jnp.sum)(n)) == 4095 * 4096 // 2)\n")
+    r = _run(code)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["True", "False", "True", "True", "True", "True", "True"]
