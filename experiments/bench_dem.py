@@ -24,14 +24,13 @@ import json
 import os
 import platform
 import statistics
-import time
 
 import jax
 
 from fpsi_jax import integrate, scenes
 from fpsi_jax.simulate import setup
 
-from _bench import compile_and_warm_up
+from _bench import compile_and_warm_up, timed_chunk
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -46,10 +45,8 @@ def bench(name, steps, repeats, **kw):
     r0 = int(st.status.rebuilds)
     walls = []
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        st, _ = compiled(st, p)
-        jax.block_until_ready(st)
-        walls.append(time.perf_counter() - t0)
+        st, wall = timed_chunk(compiled, st, p)
+        walls.append(wall)
     if bool(st.status.bad) or bool(st.status.overflow):
         raise RuntimeError(f"{name} bench went bad: code {int(st.status.code)} particle "
                            f"{int(st.status.particle)} step {int(st.status.step)} overflow "

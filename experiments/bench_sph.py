@@ -6,8 +6,9 @@
 Each row times ``reps`` chunks of ``steps`` steps, every one from the same warmed-up state
 (the same work), and reports the median chunk (``particle_steps_per_s``) and the fastest
 (``best_particle_steps_per_s``): on this shared 2-core machine one chunk alone varied by
-up to 40 % from one run to the next. Writes experiments/results/bench_sph.json. Particle count = fluid + boundary particles
-(every particle sits in the neighbour list; only fluid rows are summed).
+up to 40 % from one run to the next. Writes experiments/results/bench_sph.json. Particle
+count = fluid + boundary particles (every particle sits in the neighbour list; only fluid
+rows are summed).
 """
 from __future__ import annotations
 
@@ -15,16 +16,15 @@ import argparse
 import json
 import os
 import platform
-import time
+import statistics
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from fpsi_jax import integrate, scenes
 from fpsi_jax.simulate import grow, reallocate, setup
 
-from _bench import compile_and_warm_up
+from _bench import compile_and_warm_up, needs_growth, timed_chunk
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -46,17 +46,15 @@ def bench(dx, steps, old_step=False, reps=5, **phys_opts):
         r0 = int(st.status.rebuilds)
         walls = []
         for _ in range(reps):
-            t0 = time.perf_counter()
-            new, _ = compiled(st, p)
-            jax.block_until_ready(new)
-            walls.append(time.perf_counter() - t0)
-            if bool(new.status.overflow) or bool(new.status.h_exceeded):
+            new, wall = timed_chunk(compiled, st, p)
+            walls.append(wall)
+            if needs_growth(new):
                 break
-        if not (bool(new.status.overflow) or bool(new.status.h_exceeded)):
+        if not needs_growth(new):
             break
         phys = grow(phys, new)
         phys, st, compiled, _ = compile_and_warm_up(phys, reallocate(phys, st), p, steps)
-    wall, best = float(np.median(walls)), min(walls)
+    wall, best = statistics.median(walls), min(walls)
     st = new
     n = sc.fluid.n + sc.boundary.n
     if bool(st.status.bad) or bool(st.status.overflow):
