@@ -673,9 +673,17 @@ def substeps_for(scene: Scene, dt: float, params: Params | None = None) -> int:
     return max(1, int(math.ceil(dt / bound * (1.0 - 1e-12))))
 
 
-def check_dt(scene: Scene, dt: float, params: Params | None = None, substeps: int = 1) -> None:
+def check_dt(scene: Scene, dt: float, params: Params | None = None, substeps: int = 1,
+             auto_substeps: bool = False) -> None:
+    """Refuse a step outside (0, bound]. With ``auto_substeps`` (fluid and discs, the
+    sub-step count chosen from dt) the DEM bound never limits dt, so a step that is not
+    positive is told the SPH bound, the largest step it may ask for."""
     bound = stable_dt(scene, params, substeps=substeps)
     if not dt > 0:
+        if auto_substeps and scene.fluid is not None and scene.solid is not None:
+            bound = sph_dt(scene, params or scene.params)
+            raise ParameterError(f"dt = {dt} out of range; allowed (0, {bound:.4g}] s (the "
+                                 "DEM sub-steps are chosen from dt)")
         raise ParameterError(f"dt = {dt} out of range; allowed (0, {bound:.4g}] s")
     if dt > bound * (1 + 1e-9):
         sub = f" with dem_substeps = {substeps}" if substeps > 1 else ""

@@ -92,7 +92,8 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
     elif phys.has_fluid and phys.has_solid and not given:
         n_sub = integrate.substeps_for(scene, float(dt), params)
     if not unsafe_dt:
-        integrate.check_dt(scene, float(dt), params, substeps=n_sub)
+        integrate.check_dt(scene, float(dt), params, substeps=n_sub,
+                           auto_substeps=phys.has_fluid and phys.has_solid and not given)
     elif not float(dt) > 0:
         raise ParameterError(f"dt = {dt} out of range; allowed (0, inf) with unsafe_dt")
     phys = dataclasses.replace(phys, dem_substeps=n_sub)

@@ -226,6 +226,21 @@ def test_substeps_are_derived_from_the_two_bounds_and_checked():
         setup(sc, dem_substeps=0)
 
 
+def test_a_bad_coupled_step_is_told_the_range_it_may_use():
+    """With the sub-steps chosen from dt, a step that is not positive is told the SPH bound
+    (the DEM sub-step bound does not limit it), and that bound is accepted; with the
+    sub-steps fixed, the DEM bound × their count."""
+    from fpsi_jax.simulate import setup
+    sc = _coarse_plate()
+    sph_b = integrate.sph_dt(sc, sc.params)
+    with pytest.raises(ParameterError, match=rf"allowed \(0, {sph_b:.4g}\] s \(the DEM sub-steps"):
+        setup(sc, dt=-1.0)
+    assert setup(sc, dt=sph_b)[1].dt == pytest.approx(sph_b)
+    dem_b = integrate.dem_dt(sc, sc.params)
+    with pytest.raises(ParameterError, match=rf"allowed \(0, {2 * dem_b:.4g}\] s$"):
+        setup(sc, dt=0.0, dem_substeps=2)
+
+
 def test_substeps_equal_small_single_steps_of_the_discs():
     """n DEM sub-steps of Δt/n inside one step = n DEM steps of Δt/n (fluid force held)."""
     from fpsi_jax.simulate import setup
