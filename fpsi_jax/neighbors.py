@@ -18,14 +18,33 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib
 import warnings
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax_md import partition, space
 
 from .scene import NeighborConfig
+
+
+class _Deferred:
+    """A module imported on first attribute access. jax_md's package ``__init__`` imports
+    all of jax-md (rigid_body, nn, … run JAX at import: ~5 s on this machine), and only
+    ``partition`` and ``space`` are used here, first when a list is allocated; deferring
+    them lets ``setup`` refuse bad input (and ``fpsi list`` answer) without that wait."""
+
+    def __init__(self, name):
+        self._name, self._module = name, None
+
+    def __getattr__(self, attr):
+        if self._module is None:
+            self._module = importlib.import_module(self._name)
+        return getattr(self._module, attr)
+
+
+partition = _Deferred("jax_md.partition")
+space = _Deferred("jax_md.space")
 
 
 @functools.lru_cache(maxsize=64)

@@ -189,3 +189,27 @@ def _check_allocate_equals_jax_md(scene, kw, extra):
         assert bool(got.did_buffer_overflow) == bool(want.did_buffer_overflow)
         np.testing.assert_array_equal(np.asarray(got.reference_position),
                                       np.asarray(want.reference_position))
+
+
+def test_jax_md_is_imported_only_when_a_list_is_built():
+    """Bad input is refused before jax-md's ~5 s package import; the first allocation
+    imports it (a fresh interpreter, so other tests' imports do not count)."""
+    import subprocess
+    import sys
+    code = (
+        "import sys\n"
+        "from fpsi_jax import scenes\n"
+        "from fpsi_jax.params import ParameterError\n"
+        "from fpsi_jax.simulate import setup\n"
+        "sc = scenes.build('hydrostatic_tank', dx=0.02, depth=0.1, width=0.1)\n"
+        "try:\n"
+        "    setup(sc, dt=-1.0)\n"
+        "except ParameterError:\n"
+        "    pass\n"
+        "assert 'jax_md' not in sys.modules, 'jax_md imported before any list'\n"
+        "from fpsi_jax import integrate\n"
+        "phys, params = setup(sc)\n"
+        "integrate.init_state(sc, phys, params.as_arrays(integrate.dtype(phys)))\n"
+        "assert 'jax_md.partition' in sys.modules\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
