@@ -560,12 +560,14 @@ def _grains(scene: Scene):
 # Except in a structure coupled to the fluid (option fsi), which keeps physics.md's 0.25 and
 # 0.2: there the step is sized for accuracy, not stability. The staggered coupling holds
 # the fluid force over the DEM sub-steps of one SPH step, and its error grows with both
-# steps. The coarse elastic gate (converged peak 38.94 mm: halving both steps moves it
-# 0.01 mm) gave 44.0 mm (+13 %) with both at the new coefficients, 39.4 (+1.3 %) with SPH
-# 0.875 and DEM 0.2, 38.9 with SPH 0.6 and DEM 0.2. But at the seed resolution SPH 0.6 and DEM
-# 0.2 lifted the peak from 39.4 to 40.9 mm (+3.9 %, against the 1 % multi-rate target of
-# issue 4). The coupled fluid is also less stable: the coarse gate blew up at 1.31 × the
-# 0.875 step and at 1.91 × the 0.6 one, i.e. 4.6 × the 0.25 one.
+# steps. The coarse elastic gate (38.94 mm peak; half of both steps 38.89) gave 43.4 mm
+# (+12 %) with both at the new coefficients, 39.6 (+1.8 %) with SPH 0.875 and DEM 0.2,
+# 38.6 with SPH 0.5 and DEM 0.2 (experiments/gate_coupling_steps.py; chunk length alone
+# moves the peak by up to 0.5 %). But at the seed resolution SPH 0.6 and DEM 0.2 lifted
+# the peak from 39.4 to 40.9 mm (+3.9 %, against the 1 % multi-rate target of issue 4).
+# The DEM sub-step at 0.55 is within 2 % while the SPH step stays at 0.25, and +12–14 %
+# with an SPH step of 0.5 or 0.875. The coupled fluid is also less stable: the coarse gate
+# blew up at 1.31 × the 0.875 step and at 5.25 × the 0.25 one.
 SPH_CFL = 0.875
 FSI_SPH_CFL = 0.25
 DEM_DT_FACTOR = 0.55
