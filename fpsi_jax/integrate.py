@@ -680,12 +680,12 @@ def check_dt(scene: Scene, dt: float, params: Params | None = None, substeps: in
     """Refuse a step outside (0, bound]. With ``auto_substeps`` (fluid and discs, the
     sub-step count chosen from dt) the DEM bound never limits dt, so a step that is not
     positive is told the SPH bound, the largest step it may ask for."""
+    if not dt > 0 and auto_substeps and scene.fluid is not None and scene.solid is not None:
+        raise ParameterError(f"dt = {dt} out of range; allowed "
+                             f"(0, {sph_dt(scene, params or scene.params):.4g}] s (the DEM "
+                             "sub-steps are chosen from dt)")
     bound = stable_dt(scene, params, substeps=substeps)
     if not dt > 0:
-        if auto_substeps and scene.fluid is not None and scene.solid is not None:
-            bound = sph_dt(scene, params or scene.params)
-            raise ParameterError(f"dt = {dt} out of range; allowed (0, {bound:.4g}] s (the "
-                                 "DEM sub-steps are chosen from dt)")
         raise ParameterError(f"dt = {dt} out of range; allowed (0, {bound:.4g}] s")
     if dt > bound * (1 + 1e-9):
         sub = f" with dem_substeps = {substeps}" if substeps > 1 else ""
