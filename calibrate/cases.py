@@ -23,6 +23,7 @@ import numpy as np
 from fpsi_jax.params import ParameterError
 from fpsi_jax.scenes import build
 from fpsi_jax.scenes.beams import euler_bernoulli_f1, tip_deflection
+from fpsi_jax.scenes.fsi_cases import GATE_COARSE  # noqa: F401  (cases.GATE_COARSE)
 
 from . import space as sp
 from .fit import Calibration
@@ -146,7 +147,6 @@ def get(name: str):
     return CASES[name]
 
 
-GATE_COARSE = {"dx": 0.0035, "d": 0.0025, "dx_boundary": 0.0025, "h0": 0.004375}
 
 
 def gate_reference():

@@ -20,11 +20,11 @@ import numpy as np
 
 from fpsi_jax import fsi
 from fpsi_jax import overrides as ov
+from fpsi_jax.scenes.fsi_cases import GATE_COARSE as COARSE
 from fpsi_jax.simulate import SimulationError, simulate
 from fpsi_jax.validate_fsi import gate_metrics, plot_gate, tip_displacement, tip_observer
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
-COARSE = {"dx": 0.0035, "d": 0.0025, "dx_boundary": 0.0025, "h0": 0.004375}
 
 
 def run(kw, t_end=None, **phys):

@@ -22,12 +22,12 @@ import time
 import numpy as np
 
 from fpsi_jax import integrate, scenes
+from fpsi_jax.scenes.fsi_cases import GATE_COARSE
 from fpsi_jax.simulate import simulate
 from fpsi_jax.validate_fsi import gate_metrics, tip_displacement, tip_observer
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results", "gate_coupling_steps.json")
-GATE_COARSE = {"dx": 0.0035, "d": 0.0025, "dx_boundary": 0.0025, "h0": 0.004375}
 DEFAULT = ("0.125,0.1", "0.25,0.2", "0.25,0.55", "0.375,0.2", "0.5,0.2", "0.5,0.55",
            "0.875,0.2", "0.875,0.55")
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from fpsi_jax import io
 from fpsi_jax import overrides as ov
+from fpsi_jax.scenes.fsi_cases import GATE_COARSE
 from fpsi_jax.simulate import simulate
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
@@ -27,7 +28,7 @@ if __name__ == "__main__":
     ap.add_argument("--set", action="append", default=[])
     args = ap.parse_args()
     os.makedirs(OUT, exist_ok=True)
-    base = dict(dx=0.0035, d=0.0025, dx_boundary=0.0025, h0=0.004375) if args.coarse else {}
+    base = dict(GATE_COARSE) if args.coarse else {}
     scene, phys = ov.build("gate_failure", {**base, **ov.parse_pairs(args.set)})
     h5 = os.path.join(tempfile.mkdtemp(), "gate_failure.h5")
     t0 = time.perf_counter()

@@ -27,11 +27,11 @@ import time
 import numpy as np
 
 from fpsi_jax import scenes, stability
+from fpsi_jax.scenes.fsi_cases import GATE_COARSE
 from fpsi_jax.simulate import SimulationError, simulate
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results")
-GATE_COARSE = {"dx": 0.0035, "d": 0.0025, "dx_boundary": 0.0025, "h0": 0.004375}
 
 # case: (scene, builder keywords, t_end, sweep the DEM sub-step instead of the step,
 #        speed limit or None for the probe's default 10 × the velocity scale)

@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import overrides as ov
-from .scenes.fsi_cases import gate_tip, plate_deflection, plate_midpoint, plate_reference
+from .scenes.fsi_cases import GATE_COARSE, gate_tip, plate_deflection, plate_midpoint, plate_reference
 from .simulate import simulate
 from .validate import Record, load_csv, register
 
@@ -135,7 +135,7 @@ def plot_gate(curves, out_png, title="Elastic gate (Antoci et al. 2007)"):
 @register("elastic_gate", "Antoci elastic gate: tip peak ux and its time vs experiment, "
           "RMS of ux, uy")
 def elastic_gate(quick: bool = False, overrides: dict | None = None):
-    base = {"dx": 0.0035, "d": 0.0025, "dx_boundary": 0.0025, "h0": 0.004375} if quick else {}
+    base = dict(GATE_COARSE) if quick else {}
     scene, phys = ov.build("elastic_gate", overrides or {}, base)
     t0 = time.perf_counter()
     res = simulate(scene, progress=False, observe=tip_observer(scene), **phys)

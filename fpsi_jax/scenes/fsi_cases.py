@@ -180,6 +180,11 @@ def gate_discs(x_face, gap, length, thickness, d, clamp_rows):
     return x, k >= n_free, k == 0
 
 
+# The elastic gate's coarse resolution (fluid 3.5 mm, discs and boundary 2.5 mm, h 4.375 mm):
+# what the quick validation, the tests, the calibration and the experiments run.
+GATE_COARSE = {"dx": 0.0035, "d": 0.0025, "dx_boundary": 0.0025, "h0": 0.004375}
+
+
 def elastic_gate(*, water_width=0.1, water_height=0.14, gate_length=0.079,
                  gate_thickness=0.005, gap=0.0, E=10.0e6, nu=0.4, rho_gate=1100.0,
                  rho_water=1000.0, dx=0.00175, d=0.00125, dx_boundary=0.00125, h0=0.0021875,
