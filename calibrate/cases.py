@@ -20,10 +20,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fpsi_jax.params import ParameterError
-from fpsi_jax.scenes import build
-from fpsi_jax.scenes.beams import euler_bernoulli_f1, tip_deflection
-from fpsi_jax.scenes.fsi_cases import GATE_COARSE  # noqa: F401  (cases.GATE_COARSE)
+from fpsi_jax.cases import build
+from fpsi_jax.cases.beams import euler_bernoulli_f1, tip_deflection
+from fpsi_jax.cases.fsi_cases import GATE_COARSE  # noqa: F401  (cases.GATE_COARSE)
+from fpsi_jax.model.errors import ParameterError
 
 from . import space as sp
 from .fit import Calibration
@@ -152,7 +152,7 @@ def get(name: str):
 def gate_reference():
     """(t, ux, uy) of the Antoci et al. (2007) experiment (consensus of two digitisations,
     fpsi_jax/data, provenance in its README)."""
-    from fpsi_jax.validate import load_csv
+    from fpsi_jax.cases.registry import load_csv
     from fpsi_jax.validate_fsi import GATE_EXPERIMENT
     ref = load_csv(GATE_EXPERIMENT)
     return ref[:, 0], ref[:, 1], ref[:, 3]
@@ -175,7 +175,7 @@ def elastic_gate(*, resolution="coarse", t_fit=0.2, damping_start=0.5, stiffness
     (1.75 / 1.25 mm); other keywords go to the scene builder. ``remat_step`` checkpoints
     every step inside the √n chunks (XLA's temporary memory of the full 0.4 s seed-resolution
     gradient: 0.55 GB instead of 13.7 GB; experiments/calibration_cost.py)."""
-    from fpsi_jax.scenes.fsi_cases import gate_tip
+    from fpsi_jax.cases.fsi_cases import gate_tip
     if resolution not in ("coarse", "seed"):
         raise ParameterError(f"resolution = {resolution!r}; allowed 'coarse', 'seed'")
     kw = {**(GATE_COARSE if resolution == "coarse" else {}), **scene_kw}
@@ -210,7 +210,7 @@ def evaluate(case: Case, values: dict | None, t_end: float, progress=False, para
     """Forward run of the case's scene with the fitted quantities at ``values`` (or with
     ``params`` as given) to ``t_end`` (host driver, same dt and sub-steps as the fit):
     (t, u (n, 2), Result)."""
-    from fpsi_jax.simulate import simulate
+    from fpsi_jax.run.simulate import simulate
     pr = case.calibration.problem
     space = case.calibration.space
     if params is None:

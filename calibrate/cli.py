@@ -8,8 +8,8 @@ import inspect
 import json
 import os
 
-from fpsi_jax import overrides as ov
-from fpsi_jax.params import ParameterError
+from fpsi_jax.cases import overrides as ov
+from fpsi_jax.model.errors import ParameterError
 
 from . import cases
 from .fit import OPTIMIZERS, fit, plot_fit
@@ -36,7 +36,7 @@ def run(args) -> int:
     sig = inspect.signature(builder).parameters
     allowed = [n for n, q in sig.items() if q.kind == q.KEYWORD_ONLY]
     if any(q.kind == q.VAR_KEYWORD for q in sig.values()):      # the rest go to the scene
-        from fpsi_jax import scenes
+        from fpsi_jax import cases as scenes
         allowed += [k for k in scenes.builder_keys(cases.SCENE_OF[args.case])
                     if k not in allowed and k not in ("damping", "t_end", "variant")]
     bad = [k for k in kw if k not in allowed]
@@ -61,3 +61,11 @@ def run(args) -> int:
                       "stopped": res.stopped, "wall_s": round(res.wall_s, 1)}, indent=1))
     print(f"wrote {js} and {png}")
     return 0
+
+
+def list_cases():
+    """``fpsi list``: the ready-made calibration cases."""
+    print("calibration cases:")
+    for name, fn in cases.CASES.items():
+        doc = (fn.__doc__ or "").strip().splitlines()[0]
+        print(f"  {name:20s} {doc}")

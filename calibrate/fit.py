@@ -13,6 +13,7 @@ import json
 import math
 import os
 import time
+from types import SimpleNamespace
 from typing import Sequence
 
 import jax
@@ -20,10 +21,9 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from fpsi_jax import integrate
-from fpsi_jax.params import ParameterError
-from fpsi_jax.simulate import SimulationError
-from fpsi_jax.state import STATUS_CODES
+from fpsi_jax.model.errors import ParameterError
+from fpsi_jax.run.simulate import run_until_fits
+from fpsi_jax.solver import stages
 
 from .rollout import Problem
 from .space import ParamSpace
@@ -36,7 +36,7 @@ class Calibration:
 
     Every evaluation checks the run's status on the host: a neighbour overflow regrows the
     lists and redoes the evaluation (no pair is dropped, as in ``simulate``); an unstable
-    run raises :class:`~fpsi_jax.simulate.SimulationError`."""
+    run raises :class:`~fpsi_jax.model.errors.SimulationError`."""
 
     def __init__(self, problem: Problem, space: ParamSpace, targets: Sequence):
         if not targets:
@@ -46,7 +46,7 @@ class Calibration:
 
     @property
     def dtype(self):
-        return integrate.dtype(self.problem.phys)
+        return stages.dtype(self.problem.phys)
 
     def _build(self):
         pr, space, targets, times = self.problem, self.space, self.targets, self.problem.times
@@ -69,21 +69,20 @@ class Calibration:
 
     def _call(self, kind: str, z):
         z = jnp.asarray(z, self.dtype)
-        for _ in range(6):
-            out = self._fns[kind](z, self.problem.state0, self.problem.params)
-            status = out[0][1][1] if kind == "value_and_grad" else out[1][1]
-            if status.must_redo():
-                final, _ = jax.jit(self.problem.run)(self.space.params(z, self.problem.params))
-                self.problem = self.problem.regrown(final)
+
+        def attempt(phys, state0):
+            if phys is not self.problem.phys:        # lists regrown: new programs
+                self.problem = dataclasses.replace(self.problem, phys=phys, state0=state0)
                 self._build()
-                continue
-            if bool(status.bad):
-                code = int(status.code)
-                raise SimulationError(int(status.step), int(status.step) * self.problem.dt,
-                                      int(status.particle), STATUS_CODES[code],
-                                      phase="solid" if code >= 6 else "fluid")
-            return out
-        raise RuntimeError("the neighbour lists kept overflowing")
+            out = self._fns[kind](z, state0, self.problem.params)
+            end = SimpleNamespace(status=out[0][1][1] if kind == "value_and_grad"
+                                  else out[1][1])
+            if end.status.must_redo():               # the lists to grow are the forward run's
+                end, _ = jax.jit(self.problem.run)(self.space.params(z, self.problem.params))
+            return end, out
+
+        return run_until_fits(attempt, self.problem.phys, self.problem.state0,
+                              self.problem.dt, max_regrowths=5).result
 
     def value_and_grad(self, z):
         """((loss, (u, status)), dloss/dz)."""

@@ -5,7 +5,7 @@ and DEM sub-steps fixed, so every parameter set in a fit runs the same compiled 
 the initial ``State`` with its neighbour lists allocated, the base ``Params`` as arrays,
 and the number of steps and the per-step observation.
 
-:func:`checkpointed_rollout` is ``integrate.rollout`` split into an outer ``lax.scan``
+:func:`checkpointed_rollout` is ``solver.forward.rollout`` split into an outer ``lax.scan``
 over chunks whose body is wrapped in ``jax.checkpoint``: the reverse pass stores one
 state per chunk and recomputes the inside of one chunk at a time, so with chunks of
 √n steps a gradient through n steps keeps ~2√n states instead of n (memory measured in
@@ -25,11 +25,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fpsi_jax import integrate
-from fpsi_jax.params import ParameterError, Params
-from fpsi_jax.scene import Physics, Scene
-from fpsi_jax.simulate import SimulationError, grow, reallocate, setup
-from fpsi_jax.state import STATUS_CODES, State
+from fpsi_jax.model.config import Physics
+from fpsi_jax.model.errors import ParameterError
+from fpsi_jax.model.params import Params
+from fpsi_jax.model.scene import Scene
+from fpsi_jax.model.state import State
+from fpsi_jax.run.simulate import setup
+from fpsi_jax.solver import init, stages
+from fpsi_jax.solver import forward as stepper
 
 
 def checkpointed_rollout(phys: Physics, state: State, params: Params, n_steps: int,
@@ -40,11 +43,11 @@ def checkpointed_rollout(phys: Physics, state: State, params: Params, n_steps: i
     ``remat_step`` also checkpoints every single step (see module docstring)."""
     chunk = int(chunk or max(1, math.ceil(math.sqrt(n_steps))))
     n_outer, rem = divmod(int(n_steps), chunk)
-    step = jax.checkpoint(integrate.step, static_argnums=0) if remat_step else None
+    step = jax.checkpoint(stepper.step, static_argnums=0) if remat_step else None
 
     def inner(s, p, n):
         if step is None:
-            return integrate.rollout(phys, s, p, n, observe)
+            return stepper.rollout(phys, s, p, n, observe)
 
         def body(c, _):
             c = step(phys, c, p)
@@ -94,14 +97,10 @@ class Problem:
 
     def run(self, params: Params):
         """(final state, observations) for ``params``: pure, jittable, differentiable."""
-        state = integrate.refresh_rates(self.phys, self.state0, params)
+        state = init.refresh_rates(self.phys, self.state0, params)
         return checkpointed_rollout(self.phys, state, params, self.n_steps, self.observe,
                                     self.chunk, self.remat_step)
 
-    def regrown(self, final: State) -> "Problem":
-        """The problem with neighbour lists large enough for what ``final`` overflowed."""
-        phys = grow(self.phys, final)
-        return dataclasses.replace(self, phys=phys, state0=reallocate(phys, self.state0))
 
 
 def prepare(scene: Scene, t_end: float, observe: Callable, *, dt: float | None = None,
@@ -114,7 +113,7 @@ def prepare(scene: Scene, t_end: float, observe: Callable, *, dt: float | None =
     when given, the parameter set a fit may reach that needs the smallest step (e.g. the
     upper bounds of the fitted stiffnesses), and is then fixed for every evaluation, so
     the fit neither recompiles nor steps past a stability bound. Every check of
-    :func:`fpsi_jax.simulate.setup` runs here, before anything is compiled."""
+    :func:`fpsi_jax.run.simulate.setup` runs here, before anything is compiled."""
     if not t_end > 0:
         raise ParameterError(f"t_end = {t_end} out of range; allowed (0, inf)")
     base = params or scene.params
@@ -124,22 +123,9 @@ def prepare(scene: Scene, t_end: float, observe: Callable, *, dt: float | None =
     if phys.has_fluid and phys.has_solid:
         overrides["dem_substeps"] = phys.dem_substeps
     phys, base = setup(scene, float(p_bound.dt), base, **overrides)
-    p = base.as_arrays(integrate.dtype(phys))
-    state = integrate.init_state(scene, phys, p)
+    p = base.as_arrays(stages.dtype(phys))
+    state = init.init_state(scene, phys, p)
     n = int(math.ceil(t_end / float(base.dt) - 1e-9))
     return Problem(scene=scene, phys=phys, state0=state, params=p, n_steps=n,
                    chunk=int(chunk or max(1, math.ceil(math.sqrt(n)))), observe=observe,
                    dt=float(base.dt), remat_step=bool(remat_step))
-
-
-def check_status(final: State, dt: float) -> str | None:
-    """'overflow' if a neighbour list overflowed (the caller regrows and redoes), None if
-    all is well; raises :class:`SimulationError` for an unstable run."""
-    st = final.status
-    if st.must_redo():
-        return "overflow"
-    if bool(st.bad):
-        code = int(st.code)
-        raise SimulationError(int(st.step), int(st.step) * dt, int(st.particle),
-                              STATUS_CODES[code], phase="solid" if code >= 6 else "fluid")
-    return None

@@ -28,7 +28,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fpsi_jax.params import ParameterError, Params
+from fpsi_jax.model.errors import ParameterError
+from fpsi_jax.model.params import Params
 
 STIFFNESS_LEAVES = ("bond.kn", "bond.ks", "dem.kn", "dem.ks")
 

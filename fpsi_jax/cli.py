@@ -10,7 +10,7 @@ import json
 import os
 import sys
 
-from .params import ParameterError
+from .model.errors import ParameterError, SimulationError
 
 
 def _plot_run(scene, res, out_png):
@@ -19,7 +19,7 @@ def _plot_run(scene, res, out_png):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-    from . import validate
+    from .cases import validate
 
     f = res.state.fluid
     fig, axes = plt.subplots(1, 2 if scene.name == "dam_break" else 1,
@@ -54,7 +54,7 @@ def _plot_run(scene, res, out_png):
 def _plot_gate_run(scene, res, png):
     """Tip ux, uy against the experiment (and other codes) in ``png``, the final state in
     ``<png>_snapshot.png``; prints the error figures."""
-    from . import validate_fsi
+    from .cases import validate_fsi
     t, ux, uy = validate_fsi.tip_displacement(scene, res)
     validate_fsi.plot_gate([(f"fpsi-jax ({scene.builder_kwargs['coupling']})", t, ux, uy)],
                            png, f"{scene.name}: gate tip vs Antoci et al. (2007)")
@@ -100,7 +100,8 @@ def draw_solids(ax, scene, state, color="tab:orange"):
 
 
 def cmd_list(args):
-    from . import scenes, validate
+    from . import cases as scenes
+    from .cases import validate
     print("scenes:")
     for name, fn in scenes.SCENES.items():
         doc = (fn.__doc__ or "").strip().splitlines()[0]
@@ -108,18 +109,16 @@ def cmd_list(args):
     print("validation cases:")
     for name, d in validate.DESCRIPTIONS.items():
         print(f"  {name:20s} {d}")
-    from calibrate import cases
-    print("calibration cases:")
-    for name, fn in cases.CASES.items():
-        doc = (fn.__doc__ or "").strip().splitlines()[0]
-        print(f"  {name:20s} {doc}")
+    for command in _plugins().values():
+        if hasattr(command, "list_cases"):
+            command.list_cases()
     return 0
 
 
 def cmd_run(args):
-    from . import overrides as ov
-    from . import validate
-    from .simulate import SimulationError, simulate, setup
+    from .cases import overrides as ov
+    from .cases import validate
+    from .run.simulate import setup, simulate
 
     scene, phys = ov.build(args.scene, ov.parse_pairs(args.set))
     t_end = scene.t_end if args.t_end is None else args.t_end
@@ -132,7 +131,7 @@ def cmd_run(args):
     gate = scene.name in ("elastic_gate", "gate_failure")
     observe = validate.front_observer if scene.name == "dam_break" else None
     if gate:
-        from . import validate_fsi
+        from .cases import validate_fsi
         observe = validate_fsi.tip_observer(scene)
     try:
         res = simulate(scene, t_end=t_end, output=args.out, every=args.every,
@@ -172,8 +171,8 @@ def cmd_run(args):
 
 
 def cmd_validate(args):
-    from . import overrides as ov
-    from . import validate
+    from .cases import overrides as ov
+    from .cases import validate
     recs = validate.run(args.cases, quick=args.quick, overrides=ov.parse_pairs(args.set))
     print(validate.format_table(recs))
     if args.json:
@@ -206,21 +205,33 @@ def make_parser():
     v.add_argument("--quick", action="store_true", help="coarse, fast versions")
     v.add_argument("--set", action="append", metavar="KEY=VALUE")
     v.add_argument("--json", default=None, help="write the records as JSON")
-    from calibrate import cli as calibrate_cli
-    calibrate_cli.add_parser(sub)
+    for command in _plugins().values():
+        command.add_parser(sub)
     return p
 
 
-def cmd_calibrate(args):
-    from calibrate import cli as calibrate_cli
-    return calibrate_cli.run(args)
+PLUGIN_GROUP = "fpsi_jax.commands"
+
+
+def _plugins() -> dict:
+    """Subcommands that other packages add through the ``fpsi_jax.commands`` entry-point
+    group (``fpsi calibrate`` comes from the top-level ``calibrate`` package this way, so
+    fpsi_jax never imports the package that builds on it). Each entry point names a module
+    with ``add_parser(subparsers)`` and ``run(args) -> int`` (and optionally
+    ``list_cases()`` for ``fpsi list``)."""
+    from importlib.metadata import entry_points
+    out = {}
+    for ep in entry_points(group=PLUGIN_GROUP):
+        out[ep.name] = ep.load()
+    return out
 
 
 def main(argv=None):
     args = make_parser().parse_args(argv)
+    commands = {"list": cmd_list, "run": cmd_run, "validate": cmd_validate}
+    commands.update({name: mod.run for name, mod in _plugins().items()})
     try:
-        return {"list": cmd_list, "run": cmd_run, "validate": cmd_validate,
-                "calibrate": cmd_calibrate}[args.cmd](args)
+        return commands[args.cmd](args)
     except ParameterError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

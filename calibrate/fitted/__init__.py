@@ -22,7 +22,7 @@ def names() -> list[str]:
 def load(name: str) -> dict:
     path = os.path.join(HERE, f"{name}.json")
     if not os.path.exists(path):
-        from fpsi_jax.params import ParameterError
+        from fpsi_jax.model.errors import ParameterError
         raise ParameterError(f"no fitted record {name!r}; known: {', '.join(names())}")
     with open(path) as fh:
         return json.load(fh)

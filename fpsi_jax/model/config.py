@@ -1,0 +1,262 @@
+"""The static configuration: :class:`Physics` (which mechanisms are compiled, with which
+options) and :class:`NeighborConfig` (one neighbour list's settings).
+
+:meth:`Physics.for_scene` derives it from a :class:`~fpsi_jax.model.scene.Scene`: a phase or
+option the scene lacks is absent from the compiled program (not multiplied by zero). Every
+option is checked here, before anything is compiled.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ParameterError
+from .options import (BondSection, BoundaryPressure, FpiPressure, FsiMethod, KernelKind,
+                      Voidage, choose)
+from .scene import Scene
+
+# the kernels' support radius in units of h (both kernels of physics/kernels.py vanish at q = 2)
+KERNEL_SUPPORT = 2.0
+
+
+@dataclass(frozen=True)
+class NeighborConfig:
+    """Static settings of one jax-md neighbour list (see ``neighbors.py``).
+
+    r_cut   interaction cut-off (2·h_max for SPH)
+    skin    extra radius (jax-md ``dr_threshold``); the list is rebuilt only when a particle
+            has moved more than skin/2 since the last build
+    capacity_multiplier, extra_capacity   jax-md allocation slack; grown on overflow
+    origin, box   the domain rectangle: positions are shifted by ``origin`` into [0, box)
+    """
+
+    r_cut: float
+    skin: float
+    origin: tuple[float, float]
+    box: tuple[float, float]
+    capacity_multiplier: float = 1.25
+    extra_capacity: int = 0
+
+    @property
+    def list_radius(self) -> float:
+        """r_cut + skin: the radius pairs are listed within (jax-md's cell size too)."""
+        return self.r_cut + self.skin
+
+
+
+
+
+@dataclass(frozen=True)
+class Physics:
+    """Static configuration: hashable, closed over by the compiled step.
+
+    Phases present (n_fluid, n_boundary) and the switches of the SPH model:
+      kernel               'wendland' (K28) or 'cubic'
+      xsph                 XSPH position correction (K39)
+      anticlump            anti-clump term R_ij (W45, K38) on fluid–fluid pairs
+      anticlump_boundary   also on fluid–boundary pairs (K advises against: off)
+      variable_h           Dh/Dt = −h/(n_d ρ) Dρ/Dt (K37)
+      delta_sph            Molteni–Colagrossi density diffusion (off by default)
+      artificial_viscosity Monaghan α-viscosity (off by default; not in the seeds)
+      wall_repulsion       short-range backstop against fluid creeping through a fixed wall
+                           (sph.wall_repulsion_scalar; on by default, zero at rest; not in
+                           the seeds); wall_range, its reach r0, is derived from the scene
+                           (Scene.wall_range)
+      boundary_pressure    'fixed' (W5/K5: ρ, P of boundary particles never change) or
+                           'extrapolated' (Adami et al. 2012: P_b from the fluid, with the
+                           hydrostatic correction)
+      h_margin             the neighbour cut-off allows h to grow to h_margin·h0
+      rho_tolerance        |ρ/ρ0 − 1| above this marks a run unstable
+      x64                  float64 everywhere
+
+    DEM phases (n_solid discs, n_bonds parallel bonds, n_walls line walls) and:
+      dem_neighbors        the contact family's list (cut-off 2 R_max), None without discs
+      bond_section         'slab' (2D, A = 2R̄t, I = (2/3)tR̄³) or 'circular'
+                           (A = πR̄², I = πR̄⁴/4; K6.1's Itasca beam)
+
+    Couplings:
+      fsi, n_structure     fluid–structure method (options.FsiMethod) and structure disc count
+      dem_substeps         DEM sub-steps per SPH step (multi-rate)
+      fpi, n_grain         fluid–particle coupling of the grains (fpi.py): voidage in the
+                           fluid equations (W42–43), pressure force (buoyancy), drag,
+                           lubrication
+      voidage              what the fluid equations see: 'area' (ε = 1 − Σ V_p W, default)
+                           or 'mapped' (the equivalent 3D packing's; for grain beds); the
+                           drag closure sees the 3D one either way (fpi.py)
+      eps_floor            the fluid equations see max(ε, eps_floor) (the drag the true ε);
+                           builders of packed beds raise it (fpi_cases.py)
+      fpi_pressure         the grains' buoyancy: 'archimedes' (ρ_f V_p |g|, default) or
+                           'gradient' (−V_p ∇P of the SPH pressure); see fpi.py
+      lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)
+    """
+
+    n_fluid: int
+    n_boundary: int
+    neighbors: NeighborConfig | None
+    kernel: KernelKind = KernelKind.WENDLAND
+    xsph: bool = True
+    anticlump: bool = True
+    anticlump_boundary: bool = False
+    variable_h: bool = True
+    delta_sph: bool = False
+    artificial_viscosity: bool = False
+    wall_repulsion: bool = True
+    wall_range: float = 0.0
+    boundary_pressure: BoundaryPressure = BoundaryPressure.FIXED
+    h_margin: float = 1.05
+    rho_tolerance: float = 0.3
+    x64: bool = False
+    n_solid: int = 0
+    n_bonds: int = 0
+    n_walls: int = 0
+    dem_neighbors: NeighborConfig | None = None
+    bond_section: BondSection = BondSection.SLAB
+    fsi: FsiMethod | None = None
+    n_structure: int = 0
+    dem_substeps: int = 1
+    fpi: bool = False
+    n_grain: int = 0
+    voidage: Voidage = Voidage.AREA
+    fpi_pressure: FpiPressure = FpiPressure.ARCHIMEDES
+    eps_floor: float = 0.0
+    lubrication: bool = True
+
+    OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
+               "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
+               "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section", "dem_skin", "fsi", "dem_substeps", "fpi",
+               "voidage", "lubrication", "fpi_pressure", "eps_floor")
+
+    CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
+               "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,
+               "fpi_pressure": FpiPressure}
+
+    @classmethod
+    def for_scene(cls, scene: Scene, **overrides) -> "Physics":
+        """Derive the static configuration from a scene (scene.options, then overrides)."""
+        opts = {**scene.options, **overrides}
+        unknown = set(opts) - set(cls.OPTIONS)
+        if unknown:
+            raise ParameterError(f"unknown Physics option(s) {sorted(unknown)}; "
+                                 f"allowed: {', '.join(cls.OPTIONS)}")
+        # 0.4 h: with issue 7's step (3.5× physics.md's) a 0.25 h skin was rebuilt every ~5
+        # steps of the 24k dam break and overflowed to K = 48; 0.4 h measured fastest
+        # (0.25 / 0.3 / 0.35 / 0.4 / 0.45 / 0.6 h: 0.51 / 0.94 / 0.96 / 0.98 / 0.81 / 0.83 M
+        # particle-steps/s on one core). A fluid-coupled structure keeps physics.md's step
+        # and the 0.25 h skin that suits it (Scene.fsi_coupled).
+        skin_factor = opts.pop("skin", 0.25 if scene.fsi_coupled else 0.4)
+        cap = opts.pop("capacity_multiplier", 1.25)
+        for key, kind in cls.CHOICES.items():
+            if opts.get(key) is not None:
+                opts[key] = choose(kind, key, opts[key])
+        h_margin = float(opts.get("h_margin", 1.05))
+        if not 1.0 <= h_margin <= 2.0:
+            raise ParameterError(f"h_margin = {h_margin} out of range; allowed [1, 2]")
+        if not 0.0 <= skin_factor <= 2.0:
+            raise ParameterError(f"skin = {skin_factor} out of range; allowed [0, 2] (× h)")
+        dem_skin = float(opts.pop("dem_skin", 0.5))
+        if not 0.0 <= dem_skin <= 2.0:
+            raise ParameterError(f"dem_skin = {dem_skin} out of range; allowed [0, 2] (× R_max)")
+        n_sub = opts.get("dem_substeps", 1)
+        if n_sub is None:
+            opts.pop("dem_substeps")
+        elif not (isinstance(n_sub, (int, np.integer)) and 1 <= n_sub <= 10000):
+            raise ParameterError(f"dem_substeps = {n_sub!r} out of range; allowed integers "
+                                 "[1, 10000]")
+        method = opts.get("fsi")
+        n_structure = 0
+        if method is not None:
+            if scene.fluid is None or scene.solid is None:
+                raise ParameterError("option fsi needs both fluid and solid discs in the scene")
+            n_structure = int(scene.solid.structure_indices().size)
+            if n_structure == 0:
+                raise ParameterError("option fsi is set but no disc is marked as structure")
+        n_grain = 0
+        if opts.get("fpi"):
+            if scene.fluid is None or scene.solid is None:
+                raise ParameterError("option fpi needs both fluid and solid discs in the scene")
+            if scene.params.fpi is None:
+                raise ParameterError("option fpi is set but params.fpi is None")
+            n_grain = int(scene.solid.grain_indices().size)
+            if n_grain == 0:
+                raise ParameterError("option fpi is set but no disc is a grain")
+            both = np.intersect1d(scene.solid.grain_indices(), scene.solid.structure_indices())
+            if method is not None and both.size:
+                raise ParameterError(f"disc {int(both[0])} is both a grain and structure")
+        floor = opts.get("eps_floor", 0.0)
+        if not (isinstance(floor, (int, float)) and 0.0 <= floor < 1.0):
+            raise ParameterError(f"eps_floor = {floor!r} out of range; allowed [0, 1)")
+        origin = tuple(map(float, scene.domain_lo))
+        box = tuple(float(h - l) for h, l in zip(scene.domain_hi, scene.domain_lo))
+        nb = None
+        if scene.fluid is not None:
+            h_all = [b.h for b in (scene.fluid, scene.boundary) if b is not None]
+            h_max = float(max(np.max(h) for h in h_all)) * h_margin
+            nb = NeighborConfig(r_cut=KERNEL_SUPPORT * h_max, skin=skin_factor * h_max / h_margin,
+                                origin=origin, box=box, capacity_multiplier=float(cap))
+        dem_nb = None
+        if scene.solid is not None:
+            r_max = float(np.max(scene.solid.radius))
+            reach = 1.0
+            if n_grain and opts.get("lubrication", True):
+                reach += float(scene.params.fpi.lub_cutoff)   # W24 acts up to a gap cut-off
+            dem_nb = NeighborConfig(r_cut=2.0 * r_max * reach, skin=dem_skin * r_max, origin=origin,
+                                    box=box, capacity_multiplier=float(cap))
+        return cls(n_fluid=scene.fluid.n if scene.fluid else 0,
+                   n_boundary=scene.boundary.n if scene.boundary else 0,
+                   neighbors=nb, wall_range=scene.wall_range(),
+                   n_solid=scene.solid.n if scene.solid else 0,
+                   n_bonds=scene.bonds.n if scene.bonds else 0,
+                   n_walls=scene.walls.n if scene.walls else 0,
+                   dem_neighbors=dem_nb, n_structure=n_structure, n_grain=n_grain, **opts)
+
+    @property
+    def has_fluid(self) -> bool:
+        return self.n_fluid > 0
+
+    @property
+    def has_boundary(self) -> bool:
+        return self.n_boundary > 0
+
+    def mechanisms(self) -> tuple[str, ...]:
+        """Names of the mechanisms compiled into the step (for logs and tests)."""
+        m = []
+        if self.has_fluid:
+            m += ["sph.continuity", "sph.eos", "sph.pressure", "sph.viscosity"]
+            m += ["sph.anticlump"] if self.anticlump else []
+            m += ["sph.xsph"] if self.xsph else []
+            m += ["sph.variable_h"] if self.variable_h else []
+            m += ["sph.delta"] if self.delta_sph else []
+            m += ["sph.artificial_viscosity"] if self.artificial_viscosity else []
+        if self.has_boundary:
+            m += [f"boundary.{self.boundary_pressure}"]
+            m += ["sph.wall_repulsion"] if self.wall_repulsion and self.has_fluid else []
+        if self.has_solid:
+            m += ["dem.contacts", "dem.local_damping"]
+            m += ["dem.walls"] if self.n_walls else []
+            m += ["bonds"] if self.n_bonds else []
+        if self.has_fsi:
+            m += [f"fsi.{self.fsi}"]
+        if self.has_fpi:
+            m += ["fpi.voidage", "fpi.drag", f"fpi.buoyancy.{self.fpi_pressure}",
+                  "fpi.reaction"]
+            m += ["fpi.lubrication"] if self.lubrication else []
+        return tuple(m)
+
+    @property
+    def has_fpi(self) -> bool:
+        return bool(self.fpi) and self.n_grain > 0
+
+    @property
+    def has_fsi(self) -> bool:
+        return self.fsi is not None and self.n_structure > 0
+
+    @property
+    def has_solid(self) -> bool:
+        return self.n_solid > 0
+
+    def to_json(self) -> str:
+        d = dataclasses.asdict(self)
+        return json.dumps(d)

@@ -1,0 +1,69 @@
+"""Typed choices of the static configuration (:class:`~fpsi_jax.model.config.Physics`).
+
+Each choice is a ``str`` enum: a scene, a ``--set key=value`` or a scene file may give the
+plain string, :func:`choose` turns it into the member (or raises ParameterError listing the
+allowed values), and the compiled code compares members, never strings. Being ``str``
+subclasses they are written to JSON and HDF5 attributes as their values.
+"""
+from __future__ import annotations
+
+import enum
+
+from .errors import ParameterError
+
+
+class Choice(str, enum.Enum):
+    """Base of the option enums: the value is the name users write."""
+
+    def __str__(self) -> str:
+        return self.value
+
+
+class KernelKind(Choice):
+    """SPH smoothing kernel (physics/kernels.py)."""
+    WENDLAND = "wendland"    # Wendland C2 (K28, W41)
+    CUBIC = "cubic"          # cubic spline (Monaghan & Lattanzio 1985)
+
+
+class BoundaryPressure(Choice):
+    """Pressure of the fixed SPH boundary particles."""
+    FIXED = "fixed"                  # W5/K5 method 1: ρ, P never change
+    EXTRAPOLATED = "extrapolated"    # Adami, Hu & Adams (2012): P_b from the fluid
+
+
+class FsiMethod(Choice):
+    """Fluid–structure coupling (physics/fsi.py; K §5)."""
+    STATIONARY = "stationary"                          # K method 1
+    PRESSURE_GRADIENT = "pressure_gradient"            # K40
+    PRESSURE_APPROXIMATION = "pressure_approximation"  # K41
+    EXTRAPOLATED = "extrapolated"                      # Adami wall pressure on the structure
+
+
+class BondSection(Choice):
+    """Cross-section of a parallel bond (physics/bonds.py)."""
+    SLAB = "slab"            # 2D: A = 2R̄t, I = (2/3)tR̄³
+    CIRCULAR = "circular"    # A = πR̄², I = πR̄⁴/4 (K6.1's Itasca beam)
+
+
+class Voidage(Choice):
+    """What the fluid equations see of the grains' volume (physics/fpi.py)."""
+    AREA = "area"            # ε = 1 − Σ V_p W (2D area fraction)
+    MAPPED = "mapped"        # the equivalent 3D packing's voidage
+
+
+class FpiPressure(Choice):
+    """The grains' buoyancy (physics/fpi.py)."""
+    ARCHIMEDES = "archimedes"    # ρ_f V_p |g|
+    GRADIENT = "gradient"        # −V_p ∇P of the SPH pressure
+
+
+def choose(kind: type[Choice], key: str, value) -> Choice:
+    """``value`` (member or string) as a member of ``kind``; ParameterError naming ``key`` and
+    the allowed values otherwise."""
+    if isinstance(value, kind):
+        return value
+    try:
+        return kind(value)
+    except ValueError:
+        allowed = ", ".join(m.value for m in kind)
+        raise ParameterError(f"{key} = {value!r} is not a choice; allowed: {allowed}") from None

@@ -1,0 +1,276 @@
+"""Scenes: the host-side (numpy) description of a run.
+
+A :class:`Scene` holds numpy arrays per phase, the default :class:`~fpsi_jax.model.params.Params`
+and a few settings. :meth:`fpsi_jax.model.config.Physics.for_scene` turns it into the static
+configuration that decides which mechanisms are compiled. Scenes are made by the public
+builders of :mod:`fpsi_jax.build`.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import ParameterError
+from .params import Params
+
+
+# reach of the wall backstop in wall/fluid spacings (Scene.wall_range): the first fluid
+# layer at rest sits (Δp + Δx_wall)/2 ≥ Δx_wall away, a particle squeezing between two
+# wall particles comes within Δx_wall/2, and r0 > Δx_wall/√2 leaves no gap inside a
+# square wall lattice
+WALL_KAPPA = 0.8
+
+
+@dataclass
+class FluidBlock:
+    """SPH fluid particles: positions (n, 2), velocities, densities, masses, smoothing lengths."""
+
+    x: np.ndarray
+    v: np.ndarray
+    rho: np.ndarray
+    mass: np.ndarray
+    h: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.x.shape[0])
+
+
+@dataclass
+class BoundaryBlock:
+    """Fixed SPH boundary particles (W5, K5 method 1); ≥ 2 layers. ``p`` is their pressure."""
+
+    x: np.ndarray
+    rho: np.ndarray
+    p: np.ndarray
+    mass: np.ndarray
+    h: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.x.shape[0])
+
+
+@dataclass
+class SolidBlock:
+    """DEM discs (grains and bonded structures; physics.md §DEM).
+
+    x, v (n, 2), omega (n,)   positions, velocities, angular velocities
+    radius, mass, inertia     per disc (per unit thickness unless the scene says otherwise)
+    fixed (n,) bool           kinematic discs: they keep their initial velocity ``v`` whatever
+                              the forces (v = 0: clamped), e.g. a gate lifted at constant speed
+    f_ext (n, 2)              external force (e.g. a tip load), ramped by dem.load_ramp
+    structure (n,) bool       discs that take part in the SPH sums as boundary-like particles
+                              when the scene couples fluid and structure (Scene.options
+                              'fsi'); None: all of them
+    sph_volume (n,)           area each structure disc stands for in the SPH sums (its packing
+                              cell, e.g. d² for a square packing); None: (2R)²
+    grain (n,) bool           free grains that feel the fluid through voidage, pressure and
+                              drag when the scene has option 'fpi'; None: every disc that
+                              is neither fixed nor structure
+    """
+
+    x: np.ndarray
+    v: np.ndarray
+    omega: np.ndarray
+    radius: np.ndarray
+    mass: np.ndarray
+    inertia: np.ndarray
+    fixed: np.ndarray
+    f_ext: np.ndarray
+    structure: np.ndarray | None = None
+    sph_volume: np.ndarray | None = None
+    grain: np.ndarray | None = None
+
+    @property
+    def n(self) -> int:
+        return int(self.x.shape[0])
+
+    def structure_indices(self) -> np.ndarray:
+        s = np.ones(self.n, bool) if self.structure is None else np.asarray(self.structure, bool)
+        return np.nonzero(s)[0].astype(np.int32)
+
+    def grain_indices(self) -> np.ndarray:
+        if self.grain is not None:
+            return np.nonzero(np.asarray(self.grain, bool))[0].astype(np.int32)
+        s = np.ones(self.n, bool) if self.structure is None else np.asarray(self.structure, bool)
+        return np.nonzero(~s & ~np.asarray(self.fixed, bool))[0].astype(np.int32)
+
+    def volumes(self) -> np.ndarray:
+        if self.sph_volume is None:
+            return (2.0 * np.asarray(self.radius, float)) ** 2
+        return np.broadcast_to(np.asarray(self.sph_volume, float), (self.n,)).copy()
+
+
+@dataclass
+class BondBlock:
+    """Parallel bonds between solid discs ``i[k]`` and ``j[k]`` (physics.md §Parallel bonds)."""
+
+    i: np.ndarray
+    j: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(np.asarray(self.i).shape[0])
+
+
+@dataclass
+class WallBlock:
+    """Fixed DEM line-segment walls from ``a[k]`` to ``b[k]`` (W5)."""
+
+    a: np.ndarray
+    b: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(np.asarray(self.a).shape[0])
+
+
+@dataclass
+class Scene:
+    """Everything needed to start a run. Built by ``fpsi_jax.scenes.<name>(**kwargs)``.
+
+    domain_lo/domain_hi  rectangle every particle must stay inside (the neighbour grid)
+    v_max                the scene's velocity scale (c0 = 10 v_max, time-step bound)
+    options              Physics overrides chosen by the builder (e.g. delta_sph)
+    builder_kwargs       the physical parameters the builder was called with (for output)
+    dt                   the time step asked for (``--set dt=…``); None: derived from the
+                         stability bounds (simulate's own ``dt`` argument wins over both)
+    """
+
+    name: str
+    params: Params
+    domain_lo: tuple[float, float]
+    domain_hi: tuple[float, float]
+    v_max: float
+    fluid: FluidBlock | None = None
+    boundary: BoundaryBlock | None = None
+    solid: SolidBlock | None = None
+    bonds: BondBlock | None = None
+    walls: WallBlock | None = None
+    t_end: float = 1.0
+    options: dict = field(default_factory=dict)
+    builder_kwargs: dict = field(default_factory=dict)
+    dt: float | None = None
+
+    @property
+    def fsi_coupled(self) -> bool:
+        """Structure discs coupled to the fluid (option fsi): such a scene keeps physics.md's
+        step coefficients and the 0.25 h skin that suits them (integrate.FSI_SPH_CFL)."""
+        return (self.fluid is not None and self.solid is not None
+                and self.options.get("fsi") is not None)
+
+    def wall_range(self) -> float:
+        """Reach r0 = κ min(Δx_wall, Δp) of the wall backstop (sph.wall_repulsion_scalar),
+        κ = WALL_KAPPA, Δx_wall = √(m_b/ρ0) the finest fixed-wall spacing, Δp the fluid's
+        initial spacing; 0 without fluid or fixed wall particles."""
+        if self.fluid is None or self.boundary is None or self.boundary.n == 0:
+            return 0.0
+        sp = self.params.sph
+        dxb = math.sqrt(float(np.min(self.boundary.mass)) / float(sp.rho0))
+        return WALL_KAPPA * min(dxb, float(sp.dp))
+
+    def validate(self) -> "Scene":
+        """Check shapes, finiteness and that every particle lies inside the domain."""
+        self.params.validate()
+        lo, hi = np.asarray(self.domain_lo, float), np.asarray(self.domain_hi, float)
+        if not np.all(hi > lo):
+            raise ParameterError(f"domain_hi {tuple(hi)} must exceed domain_lo {tuple(lo)}")
+        for phase in ("fluid", "boundary", "solid"):
+            blk = getattr(self, phase)
+            if blk is None:
+                continue
+            n = blk.n
+            for k, a in dataclasses.asdict(blk).items():
+                if a is None:
+                    continue
+                a = np.asarray(a)
+                want = (n, 2) if k in ("x", "v", "f_ext") else (n,)
+                if a.shape != want:
+                    raise ParameterError(f"{phase}.{k} has shape {a.shape}, expected {want}")
+                if not np.all(np.isfinite(a)):
+                    raise ParameterError(f"{phase}.{k} contains non-finite values")
+            positive = ("mass", "radius", "inertia") if phase == "solid" else ("mass", "h", "rho")
+            for k in positive:
+                if np.any(np.asarray(getattr(blk, k)) <= 0):
+                    i = int(np.argmax(np.asarray(getattr(blk, k)) <= 0))
+                    raise ParameterError(f"{phase}.{k}[{i}] = {getattr(blk, k)[i]!r} out of "
+                                         "range; allowed (0, inf)")
+            out = np.any((blk.x < lo) | (blk.x >= hi), axis=1)
+            if out.any():
+                i = int(np.argmax(out))
+                raise ParameterError(
+                    f"{phase} particle {i} at {tuple(blk.x[i])} lies outside the domain "
+                    f"[{tuple(lo)}, {tuple(hi)})")
+        if self.fluid is None and self.solid is None:
+            raise ParameterError("scene has neither fluid nor solid particles")
+        if self.fluid is not None and self.params.sph is None:
+            raise ParameterError("scene has fluid but params.sph is None")
+        if self.boundary is not None and self.fluid is None:
+            raise ParameterError("scene has SPH boundary particles but no fluid")
+        if (self.solid is not None or self.walls is not None) and self.params.dem is None:
+            raise ParameterError("scene has DEM discs or walls but params.dem is None")
+        if self.walls is not None and self.solid is None:
+            raise ParameterError("scene has DEM walls but no solid discs")
+        if self.solid is not None and np.any(self.solid.volumes() <= 0):
+            raise ParameterError("solid.sph_volume out of range; allowed (0, inf)")
+        if self.bonds is not None:
+            self._validate_bonds()
+        if self.walls is not None:
+            a, b = np.asarray(self.walls.a, float), np.asarray(self.walls.b, float)
+            if a.shape != (self.walls.n, 2) or b.shape != a.shape:
+                raise ParameterError(f"walls.a/b must have shape (n, 2), got {a.shape}, {b.shape}")
+            if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+                raise ParameterError("walls contain non-finite end points")
+            if np.any(np.linalg.norm(b - a, axis=1) <= 0):
+                raise ParameterError("a wall segment has zero length (a == b)")
+        return self
+
+    def _validate_bonds(self):
+        if self.solid is None:
+            raise ParameterError("scene has bonds but no solid discs")
+        if self.params.bond is None:
+            raise ParameterError("scene has bonds but params.bond is None")
+        i, j = np.asarray(self.bonds.i), np.asarray(self.bonds.j)
+        n = self.solid.n
+        if i.shape != j.shape or i.ndim != 1:
+            raise ParameterError(f"bonds.i/j must be 1-D of equal length, got {i.shape}, {j.shape}")
+        if not (np.issubdtype(i.dtype, np.integer) and np.issubdtype(j.dtype, np.integer)):
+            raise ParameterError("bonds.i/j must be integer disc indices")
+        if np.any((i < 0) | (i >= n) | (j < 0) | (j >= n)):
+            raise ParameterError(f"bond disc index out of range; allowed [0, {n - 1}]")
+        if np.any(i == j):
+            raise ParameterError("a bond joins a disc to itself (i == j)")
+        d = np.linalg.norm(self.solid.x[j] - self.solid.x[i], axis=1)
+        if np.any(d <= 0):
+            raise ParameterError("a bond joins two coincident discs")
+
+    @property
+    def n_particles(self) -> int:
+        return sum(b.n for b in (self.fluid, self.boundary, self.solid) if b is not None)
+
+    def to_json(self) -> str:
+        return json.dumps({
+            "name": self.name, "builder_kwargs": _jsonable(self.builder_kwargs),
+            "domain_lo": list(self.domain_lo), "domain_hi": list(self.domain_hi),
+            "v_max": self.v_max, "t_end": self.t_end, "dt_requested": self.dt,
+            "options": _jsonable(self.options),
+            "n_fluid": self.fluid.n if self.fluid else 0,
+            "n_boundary": self.boundary.n if self.boundary else 0,
+            "n_solid": self.solid.n if self.solid else 0,
+            "n_bonds": self.bonds.n if self.bonds else 0,
+            "n_walls": self.walls.n if self.walls else 0,
+            "n_structure": (int(self.solid.structure_indices().size)
+                            if self.solid is not None and self.options.get("fsi") else 0),
+            "n_grain": (int(self.solid.grain_indices().size)
+                        if self.solid is not None and self.options.get("fpi") else 0),
+        })
+
+
+def _jsonable(d):
+    return json.loads(json.dumps(d, default=lambda o: np.asarray(o).tolist()))

@@ -1,0 +1,145 @@
+"""DEM contacts between discs and with line-segment walls; local damping
+(physics.md §DEM; W10–W17, K5–K16, K25).
+
+Conventions for a pair A–B (A the row particle ``i``, B its neighbour ``j`` or a wall):
+
+    n = (x_B − x_A)/d,  t = (−n_y, n_x),  δ = R_A + R_B − d   (contact while δ > 0)
+    lever ℓ = R − δ/2 (contact point in the middle of the overlap; K8 R + U_n/2, K16)
+    V_s = (v_B − v_A)·t − ω_B ℓ_B − ω_A ℓ_A                     (W11–W13, K7–K13)
+    F_n = k_n δ + 2β_n √(m k_n) δ̇,  δ̇ = −(v_B − v_A)·n         (W10, W15–W17)
+    F_s ← F_s − k_s V_s Δt,  |F_s| ≤ μ k_n δ                     (W13, W14)
+    shear dashpot −2β_s √(m k_s) V_s while the contact sticks
+    force on A: −F_n n − F_s t,  on B the opposite;  torque on A and on B: −F_s ℓ   (K16)
+
+m is the reduced mass m_A m_B/(m_A + m_B) (a disc's own mass against a wall or a clamped
+disc). The dashpot force is not clamped: the normal force may pull briefly at the end of a
+damped contact, which ends when δ returns to 0, so the restitution coefficient is exactly
+exp(−πβ/√(1−β²)) and the contact time π/√(k/m (1−β²)) (tests/test_dem.py).
+
+The shear force is contact history: it is stored per (row particle, neighbour slot) of the
+Dense contact list and re-addressed by the *pair* (i, j) whenever the list changes
+(:func:`remap_history`), and it is reset to 0 as soon as a contact opens.
+
+Every pair is evaluated from both sides. The scalar F_s and V_s are symmetric under A ↔ B
+while n and t change sign, so the two evaluations give equal and opposite forces (to
+round-off) and identical torques.
+"""
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from .pairs import perp
+
+
+def _safe_norm(d):
+    """|d| with a finite gradient at d = 0 (double-where)."""
+    r2 = jnp.sum(d * d, axis=-1)
+    ok = r2 > 0
+    return jnp.where(ok, jnp.sqrt(jnp.where(ok, r2, 1.0)), 0.0)
+
+
+def reduced_mass(m_a, m_b, fixed_a, fixed_b):
+    """m_A m_B/(m_A + m_B); a clamped disc counts as infinitely heavy."""
+    both = m_a * m_b / (m_a + m_b)
+    return jnp.where(fixed_a, m_b, jnp.where(fixed_b, m_a, both))
+
+
+def linear_contact(kn, ks, mu, beta_n, beta_s, delta, vn, vs, shear, m, dt):
+    """The linear spring–dashpot–slider law for one contact (arrays broadcast).
+
+    delta  overlap δ (> 0 in contact)      vn  (v_B − v_A)·n (opening rate, = −δ̇)
+    vs     V_s                             shear  F_s of the previous step
+    Returns (F_n, F_s total, F_s history): zero where δ ≤ 0 (the history resets)."""
+    touch = delta > 0
+    fn_spring = kn * delta
+    fn = fn_spring - 2.0 * beta_n * jnp.sqrt(m * kn) * vn
+    trial = shear - ks * vs * dt
+    limit = mu * fn_spring
+    slip = jnp.abs(trial) > limit
+    fs = jnp.where(slip, jnp.sign(trial) * limit, trial)
+    damp = jnp.where(slip, 0.0, -2.0 * beta_s * jnp.sqrt(m * ks) * vs)
+    zero = jnp.zeros_like(fn)
+    return (jnp.where(touch, fn, zero), jnp.where(touch, fs + damp, zero),
+            jnp.where(touch, fs, zero))
+
+
+def _contact_sum(dp, dx, valid, ra, rb, dv, omega_a, omega_b, m, shear, dt):
+    """The contact law for every (row, slot) pair, summed over slots onto the row body A.
+
+    dx = x_B − x_A, dv = v_B − v_A (n, K, 2); ra, rb radii (rb = 0 for a wall). Returns
+    (force (n, 2), torque (n,), new history (n, K), overlap (n, K))."""
+    d = _safe_norm(dx)
+    nrm = dx / jnp.where(d > 0, d, 1.0)[..., None]
+    t = perp(nrm)
+    delta = jnp.where(valid & (d > 0), ra + rb - d, -1.0)
+    la, lb = ra - 0.5 * delta, rb - 0.5 * delta
+    vn = jnp.sum(dv * nrm, axis=-1)
+    vs = jnp.sum(dv * t, axis=-1) - omega_b * lb - omega_a * la
+    fn, fs, hist = linear_contact(dp.kn, dp.ks, dp.mu, dp.beta_n, dp.beta_s, delta, vn, vs,
+                                  shear, m, dt)
+    force = -jnp.sum(fn[..., None] * nrm + fs[..., None] * t, axis=1)
+    torque = -jnp.sum(fs * la, axis=1)
+    return force, torque, hist, delta
+
+
+def disc_contacts(dp, x, v, omega, radius, mass, fixed, idx, shear, dt):
+    """Disc–disc contacts over the Dense list ``idx`` (n × K, padding index n).
+
+    Returns (force (n, 2), torque (n,), new shear history (n, K), overlap (n, K))."""
+    n = x.shape[0]
+    valid = idx < n
+    j = jnp.where(valid, idx, 0)
+    m = reduced_mass(mass[:, None], mass[j], fixed[:, None], fixed[j])
+    return _contact_sum(dp, x[j] - x[:, None, :], valid, radius[:, None], radius[j],
+                        v[j] - v[:, None, :], omega[:, None], omega[j], m, shear, dt)
+
+
+def wall_geometry(x, a, b):
+    """Closest points of the segments a→b to the discs: (vector disc→wall (n, W, 2))."""
+    ab = b - a
+    s = jnp.sum((x[:, None, :] - a[None]) * ab[None], axis=-1) / jnp.sum(ab * ab, axis=-1)
+    c = a[None] + jnp.clip(s, 0.0, 1.0)[..., None] * ab[None]
+    return c - x[:, None, :]
+
+
+def wall_contacts(dp, x, v, omega, radius, mass, a, b, shear, dt):
+    """Disc–wall contacts (W5): the wall is body B, at rest, with zero radius and infinite
+    mass. Returns (force (n, 2), torque (n,), new history (n, W), overlap (n, W))."""
+    shape = shear.shape
+    return _contact_sum(dp, wall_geometry(x, a, b), True, radius[:, None], 0.0,
+                        jnp.broadcast_to(-v[:, None, :], shape + (2,)), omega[:, None], 0.0,
+                        jnp.broadcast_to(mass[:, None], shape), shear, dt)
+
+
+def remap_history(old_idx, old_hist, new_idx):
+    """Shear history re-addressed from the slots of ``old_idx`` to those of ``new_idx`` by the
+    pair (i, j): a pair present in both keeps its value, a new pair starts at 0. Works for a
+    different capacity K too (after a reallocation)."""
+    match = old_idx[:, None, :] == new_idx[:, :, None]          # (n, K_new, K_old)
+    return jnp.sum(jnp.where(match, old_hist[:, None, :], 0.0), axis=-1)
+
+
+def local_damping(alpha, force, velocity):
+    """K25: F ← F − α |F| sign(v), per component (also for moments with ω)."""
+    return force - alpha * jnp.abs(force) * jnp.sign(velocity)
+
+
+def viscous_damping(c, mass, velocity):
+    """Mass-proportional viscous damping −c m v (per component; with J and ω for moments).
+    Smooth, unlike K25, so gradients with respect to c and through the motion are exact."""
+    return -c * mass * velocity
+
+
+def load_factor(load_ramp, t):
+    """External loads ramp linearly from 0 to 1 over ``load_ramp`` seconds (0: at once)."""
+    return jnp.where(load_ramp > 0, jnp.clip(t / jnp.where(load_ramp > 0, load_ramp, 1.0),
+                                             0.0, 1.0), 1.0)
+
+
+def kinetic_energy(v, omega, mass, inertia):
+    """Translational + rotational kinetic energy of the discs."""
+    return 0.5 * jnp.sum(mass * jnp.sum(v * v, axis=-1)) + 0.5 * jnp.sum(inertia * omega ** 2)
+
+
+__all__ = ["perp", "reduced_mass", "linear_contact", "disc_contacts", "wall_contacts",
+           "wall_geometry", "remap_history", "local_damping", "viscous_damping", "load_factor", "kinetic_energy"]

@@ -1,0 +1,182 @@
+"""Weakly compressible SPH fluid (physics.md §SPH: W41–W46, K28–K39).
+
+Pure functions of arrays. The pair sums use jax-md's Dense neighbour format: ``idx`` has one
+row per *fluid* particle and holds indices into the concatenation [fluid; boundary]; the
+padding index is n_fluid + n_boundary, which points at a dummy particle placed far away so
+every kernel term of a padded slot is exactly zero.
+
+Notation: x_ij = x_i − x_j, v_ij = v_i − v_j, h_ij = (h_i + h_j)/2 (K37: symmetric pairs),
+∇_i W_ij = x_ij F_ij with F = (1/r) dW/dr (see ``kernels``). Each pair term is antisymmetric
+in (i, j), so the pressure and viscous forces obey Newton's third law and the total momentum
+of the fluid is conserved to round-off.
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from .pairs import Pairs, gather, sum_neighbours
+
+
+def continuity(rho_i, pr: Pairs):
+    """Dρ_i/Dt = ρ_i Σ_j (m_j/ρ_j) v_ij·∇_iW_ij (K32)."""
+    return rho_i * jnp.sum(continuity_pairs(pr), axis=1)
+
+
+def continuity_pairs(pr: Pairs):
+    """Pair terms (m_j/ρ_j) v_ij·∇_iW_ij of :func:`continuity` (without the factor ρ_i)."""
+    return pr.m_j / pr.rho_j * jnp.sum(pr.vij * pr.dx, axis=-1) * pr.f
+
+
+def delta_pairs(delta, c0, rho_i, pr: Pairs, diffused=None):
+    """Pair terms of :func:`delta_diffusion`."""
+    d_i, d_j = (rho_i, pr.rho_j) if diffused is None else diffused
+    s = (2.0 * (d_j - d_i[:, None]) * (-pr.r2 * pr.f)
+         / (pr.r2 + 0.01 * pr.hij ** 2) * pr.m_j / pr.rho_j)
+    return delta * c0 * jnp.where(pr.fluid_j, pr.hij * s, 0.0)
+
+
+def pressure_scalar(m_j, coef, f):
+    """The scalar s of :func:`pressure_pairs` = s x_ij: −m_j coef F_ij."""
+    return -(m_j * coef * f)
+
+
+def voidage_bracket(p_i, rt_i, p_j, rt_j):
+    """Pressure bracket with grains, (P_i + P_j)/(ρ̃_i ρ̃_j), ρ̃ = ερ: W43's ερ in the other
+    symmetric SPH form (still antisymmetric: momentum is conserved). W43 as printed,
+    P_i/ρ̃_i² + P_j/ρ̃_j², gives a uniform pressure a net force wherever ε varies,
+    ∝ (ε_j/ε_i + ε_i/ε_j − 2) per pair: next to a 2.5 mm grain among 1.5 mm fluid particles
+    it pushed still water with up to 0.5 g. This form exerts none for a uniform P on a
+    uniform lattice, whatever ε is."""
+    return (p_i[:, None] + p_j) / (rt_i[:, None] * rt_j)
+
+
+def viscous_scalar(mu_i, mu_j, rho_i, rho_j, pr: Pairs):
+    """The scalar s of :func:`viscous_pairs` = s v_ij."""
+    return (pr.m_j * (mu_i + mu_j) * pr.r2 * pr.f
+            / (rho_i[:, None] * rho_j * (pr.r2 + 0.01 * pr.hij ** 2)))
+
+
+def artificial_viscosity_scalar(alpha, c0, rho_i, rho_j, pr: Pairs):
+    """The scalar s of :func:`artificial_viscosity_pairs` = s x_ij: −m_j Π_ij F_ij."""
+    vx = pr.vij[..., 0] * pr.dx[..., 0] + pr.vij[..., 1] * pr.dx[..., 1]
+    mu_ij = pr.hij * jnp.minimum(vx, 0.0) / (pr.r2 + 0.01 * pr.hij ** 2)
+    pi_ij = -alpha * c0 * mu_ij / (0.5 * (rho_i[:, None] + rho_j))
+    return -(pr.m_j * pi_ij * pr.f)
+
+
+def anticlump(r, p_i, rho_i, p_j, rho_j, w, w_dp):
+    """R_ij = r (|P_i|/ρ_i² + |P_j|/ρ_j²) (W_ij/W(Δp))⁴ (W45, K38; Monaghan 2000)."""
+    base = jnp.abs(p_i / rho_i ** 2)[:, None] + jnp.abs(p_j / rho_j ** 2)
+    return r * base * (w / w_dp) ** 4
+
+
+def wall_repulsion_scalar(beta, c0, r0, is_wall, pr: Pairs):
+    """The scalar s (a_i = s x_ij) of a short-range wall backstop (not in the seeds):
+    a_i = (β c0²/r0²) (1 − r²/r0²)² x_ij for a fixed boundary particle j closer than the
+    static range r0 = Physics.wall_range = κ min(Δx_wall, Δp) (κ = scene.WALL_KAPPA = 0.8,
+    Δx_wall the finest wall spacing √(m_b/ρ0), Δp the fluid's).
+
+    It is zero at rest (the first fluid layer sits (Δp + Δx_wall)/2 from the first wall
+    row) and acts on a particle about to pass between two wall particles (≤ Δx_wall/2 from
+    both): the Adami wall pressure takes its value from the fluid around it, so a slow
+    particle at the free surface of a corner meets a near-zero wall pressure and could
+    creep through the layers (README "Wall backstop"). Written in r² (no root, no divide) so
+    it costs little per pair. Conservative, U = β c0²/6 (1 − r²/r0²)³, with stiffness at
+    most β c0²/r0²: ``sph_dt`` keeps Δt ≤ r0/(c0 √β), half the leapfrog limit."""
+    q = jnp.maximum(1.0 - pr.r2 * (1.0 / (r0 * r0)), 0.0)
+    return jnp.where(is_wall, (beta * c0 * c0 / (r0 * r0)) * q * q, 0.0)
+
+
+def xsph_scalar(eps, rho_i, rho_j, pr: Pairs):
+    """The scalar s of :func:`xsph_pairs` = s v_ij."""
+    return -eps * jnp.where(pr.fluid_j, pr.m_j * pr.w / (0.5 * (rho_i[:, None] + rho_j)), 0.0)
+
+
+def smoothing_length_rate(h, rho, drho, n_d=2.0):
+    """Dh/Dt = −h/(n_d ρ) Dρ/Dt (K37), n_d = 2 in 2D."""
+    return -h / (n_d * rho) * drho
+
+
+def density_rate(phys, sp, rho_i, pr: Pairs, eps=None, rho_intrinsic=None):
+    """Dρ/Dt of the fluid rows: continuity (K32) plus δ-SPH diffusion when switched on.
+    With grains ``rho_i`` is ερ (W42) and δ-SPH diffuses the intrinsic ρ (``rho_intrinsic``,
+    all particles), scaled by ε_i: it damps pressure noise without smearing the voidage."""
+    if not phys.delta_sph:
+        with jax.named_scope("sph.continuity"):
+            return continuity(rho_i, pr)
+    with jax.named_scope("sph.continuity"):
+        cont = continuity_pairs(pr)
+    with jax.named_scope("sph.delta"):
+        diffused = None
+        if eps is not None:
+            rows = rho_i.shape[0]
+            diffused = (rho_intrinsic[:rows], gather(rho_intrinsic, pr.idx))
+        # both sums in one reduction over the neighbour axis (one loop for XLA)
+        both = jnp.sum(jnp.stack([cont, delta_pairs(sp.delta, sp.c0, rho_i, pr, diffused)],
+                                 axis=-1), axis=1)
+        return rho_i * both[:, 0] + (1.0 if eps is None else eps) * both[:, 1]
+
+
+def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, eps=None,
+                  structure_bracket=None):
+    """dv/dt (pressure with anti-clump, Morris viscosity, gravity; W43, K34–K38; the wall
+    backstop :func:`wall_repulsion_scalar` when switched on) and the
+    XSPH correction of the fluid rows. ``rho``/``p`` cover all particles (fluid, boundary,
+    structure) at the new time level. With grains, ``eps`` is the voidage of every particle
+    (1 off the fluid) and the pressure bracket is :func:`voidage_bracket`; the anti-clump
+    term (W45) uses ερ too, the viscosity (W44) and XSPH keep ρ. ``structure_bracket(coef, p_i, ρ_i, ρ_j, idx)``, when given,
+    replaces the bracket of the fluid–structure pairs (the pressure-gradient coupling, K40:
+    ``fsi.pressure_gradient_bracket``). Returns (a, δv_XSPH,
+    pair accelerations (rows, K, 2) if ``with_pairs`` else None)."""
+    rows = pr.idx.shape[0]
+    rho_i, p_i = rho[:rows], p[:rows]
+    rp = gather(jnp.stack([rho, p], axis=1), pr.idx)   # second (small) gather: new ρ, P
+    rho_j, p_j = rp[..., 0], rp[..., 1]
+    if eps is None:
+        rhp_i, rhp_j = rho_i, rho_j
+    else:
+        rhp_i, rhp_j = rho_i * eps[:rows], rho_j * gather(eps, pr.idx)
+    with jax.named_scope("sph.pressure"):
+        if eps is None:
+            coef = (p_i / rhp_i ** 2)[:, None] + p_j / rhp_j ** 2
+        else:
+            coef = voidage_bracket(p_i, rhp_i, p_j, rhp_j)
+        if structure_bracket is not None:
+            with jax.named_scope("fsi.pressure_bracket"):
+                coef = structure_bracket(coef, p_i, rho_i, rho_j, pr.idx)
+        if phys.anticlump:
+            with jax.named_scope("sph.anticlump"):
+                r_ij = anticlump(sp.r_clump, p_i, rhp_i, p_j, rhp_j, pr.w,
+                                 kern.w(sp.dp, pr.hij))
+                if not phys.anticlump_boundary:
+                    r_ij = jnp.where(pr.fluid_j, r_ij, 0.0)
+                coef = coef + r_ij
+        # every pair term is a scalar times x_ij or v_ij: the four sums are then one
+        # variadic reduction over scalars (README "Speed")
+        s_dx = pressure_scalar(pr.m_j, coef, pr.f)
+    with jax.named_scope("sph.viscosity"):
+        s_v = viscous_scalar(sp.mu, sp.mu, rho_i, rho_j, pr)
+    if phys.artificial_viscosity:
+        with jax.named_scope("sph.artificial_viscosity"):
+            s_dx = s_dx + artificial_viscosity_scalar(sp.alpha, sp.c0, rho_i, rho_j, pr)
+    if phys.wall_repulsion and phys.wall_range > 0:
+        with jax.named_scope("sph.wall_repulsion"):
+            # without structure discs every non-fluid slot is a wall particle or padding
+            # (far away: q = 0), so the fluid mask the pairs already carry suffices
+            is_wall = (~pr.fluid_j if not phys.n_structure else
+                       (pr.idx >= phys.n_fluid) & (pr.idx < phys.n_fluid + phys.n_boundary))
+            s_dx = s_dx + wall_repulsion_scalar(sp.wall_beta, sp.c0, phys.wall_range,
+                                                is_wall, pr)
+    dxx, dxy, vx, vy = pr.dx[..., 0], pr.dx[..., 1], pr.vij[..., 0], pr.vij[..., 1]
+    ax_, ay_ = s_dx * dxx + s_v * vx, s_dx * dxy + s_v * vy
+    if phys.xsph:
+        with jax.named_scope("sph.xsph"):
+            s_x = xsph_scalar(sp.eps_xsph, rho_i, rho_j, pr)
+            ax, ay, xx, xy = sum_neighbours(ax_, ay_, s_x * vx, s_x * vy)
+        acc, xs = jnp.stack([ax, ay], axis=1) + gravity, jnp.stack([xx, xy], axis=1)
+    else:
+        acc = jnp.stack(sum_neighbours(ax_, ay_), axis=1) + gravity
+        xs = jnp.zeros_like(acc)
+    pair = jnp.stack([ax_, ay_], axis=-1) if with_pairs else None
+    return acc, xs, pair

@@ -1,0 +1,48 @@
+"""Health checks inside the compiled step: per-particle status codes
+(:data:`fpsi_jax.model.state.STATUS_CODES`), the first bad particle remembered in
+:class:`~fpsi_jax.model.state.Status` for the host's error message."""
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from ..model.config import Physics
+from ..model.params import Params
+from ..model.state import FluidState, SolidState, Status
+
+
+def _box(phys: Physics, dtype_):
+    nb = phys.neighbors or phys.dem_neighbors
+    lo = jnp.asarray(nb.origin, dtype_)
+    return lo, lo + jnp.asarray(nb.box, dtype_)
+
+
+def _first(status: Status, code, step) -> Status:
+    bad_now = jnp.any(code > 0)
+    i = jnp.argmax(code > 0).astype(jnp.int32)
+    first = bad_now & ~status.bad
+    return status.replace(
+        bad=status.bad | bad_now,
+        step=jnp.where(first, step, status.step),
+        particle=jnp.where(first, i, status.particle),
+        code=jnp.where(first, code[i].astype(jnp.int32), status.code))
+
+
+def check_fluid(phys: Physics, params: Params, fluid: FluidState, step, status: Status) -> Status:
+    """Per-particle health codes of the fluid (see state.STATUS_CODES); remember the first."""
+    lo, hi = _box(phys, fluid.x.dtype)
+    rho0 = params.sph.rho0
+    code = jnp.where(~jnp.all(jnp.isfinite(fluid.x), axis=1), 1,
+           jnp.where(~jnp.all(jnp.isfinite(fluid.v), axis=1), 2,
+           jnp.where(~jnp.isfinite(fluid.rho), 3,
+           jnp.where(jnp.abs(fluid.rho / rho0 - 1.0) > phys.rho_tolerance, 4,
+           jnp.where(jnp.any((fluid.x < lo) | (fluid.x >= hi), axis=1), 5, 0)))))
+    return _first(status, code, step)
+
+
+def check_solid(phys: Physics, solid: SolidState, step, status: Status) -> Status:
+    """Health codes 6–8 of the discs (the particle index is the disc's)."""
+    lo, hi = _box(phys, solid.x.dtype)
+    code = jnp.where(~jnp.all(jnp.isfinite(solid.x), axis=1), 6,
+           jnp.where(~(jnp.all(jnp.isfinite(solid.v), axis=1) & jnp.isfinite(solid.omega)), 7,
+           jnp.where(jnp.any((solid.x < lo) | (solid.x >= hi), axis=1), 8, 0)))
+    return _first(status, code, step)

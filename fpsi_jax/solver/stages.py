@@ -1,0 +1,384 @@
+"""The stages of a step, each ``(physics, params, state) -> state``.
+
+:func:`fpsi_jax.solver.forward.step` chains them; this module composes the physics modules
+(``fpsi_jax.physics``), which never call each other. Integration is leapfrog (velocity
+Verlet, W6/K5) with one neighbour pass per step, the density treated like a position (it is
+drifted with the velocity at the half step):
+
+    v½ = v + ½Δt a
+    x' = x + Δt (v½ + δv_XSPH)
+    Dρ/Dt at (x', v½)                       (continuity, δ-SPH)
+    ρ' = ρ + Δt Dρ/Dt,  h' = h + Δt Dh/Dt,  P' = P(ρ')
+    a' at (x', ρ', P', v½)                  (pressure, anti-clump, viscosity, gravity)
+    v' = v½ + ½Δt a'
+
+For the acoustic mode this is the symplectic leapfrog, stable up to ωΔt = 2 (kicking ρ by
+half steps with a stored rate, like v, is unconditionally unstable: see
+tests/solver/test_forward.py::test_density_update_is_stable_for_acoustic_oscillator). The
+geometry of the pairs is computed once and shared by the density and momentum passes; the
+kernel uses h of the start of the step. The XSPH correction δv_XSPH used in a drift is the
+one of the previous step; it smooths the transport velocity, so the O(Δt) lag is harmless.
+
+DEM discs use the same kick–drift–kick for translation and rotation (W6, K5):
+
+    v½ = v + ½Δt a,  ω½ = ω + ½Δt α,  x' = x + Δt v½,  θ' = θ + Δt ω½
+    forces at (x', θ', v½, ω½): contacts (shear increment V_s(v½)Δt), walls, bonds,
+    gravity, external loads, then local damping with sign(v½), sign(ω½)
+    v' = v½ + ½Δt a',  ω' = ω½ + ½Δt α'
+
+which is the central-difference scheme of PFC/K (velocities at half steps) written with
+whole-step velocities. Clamped discs keep v = ω = 0.
+
+With fluid and discs together the step is multi-rate and staggered: the discs take
+``physics.dem_substeps`` sub-steps under the fluid force of the last SPH evaluation (held
+over the sub-steps), then the fluid steps against the discs at the end of the step and
+returns the new force (docs/design.md says why impulse splitting was rejected).
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from ..model.config import Physics
+from ..model.options import BoundaryPressure, FpiPressure, FsiMethod
+from ..model.params import Params
+from ..model.state import SolidState, State
+from ..physics import bonds as bonds_law
+from ..physics import boundary, dem, eos, fpi, fsi, kernels, sph
+from ..physics.pairs import pairs
+from . import health, neighbors
+
+
+def dtype(phys: Physics):
+    """Floating-point type of the compiled step."""
+    return jnp.float64 if phys.x64 else jnp.float32
+
+
+def _cat(*parts):
+    """Concatenate the per-family arrays that are present (None: family absent)."""
+    parts = [p for p in parts if p is not None]
+    return parts[0] if len(parts) == 1 else jnp.concatenate(parts)
+
+
+def _opt(block, name):
+    return None if block is None else getattr(block, name)
+
+
+def sph_positions(state: State):
+    """Positions of the SPH family in list order: fluid, boundary, structure, grains."""
+    b, f, g = state.boundary, state.fsi, state.fpi
+    return _cat(state.fluid.x, _opt(b, "x"),
+                None if f is None else state.solid.x[f.idx],
+                None if g is None else state.solid.x[g.idx])
+
+
+# --- clock ---------------------------------------------------------------------------------
+def clock(phys: Physics, params: Params, state: State) -> State:
+    """Advance the step counter and the time to the end of the step."""
+    n = state.step + 1
+    return state.replace(step=n, t=n * params.dt)
+
+
+# --- DEM -------------------------------------------------------------------------------------
+def fluid_force_on_discs(phys: Physics, state: State):
+    """The fluid's force on every disc (n_solid, 2) from the last SPH evaluation (pressure
+    and viscosity on structure discs, pressure and drag on grains), or None."""
+    if not (phys.has_fsi or phys.has_fpi):
+        return None
+    f = jnp.zeros_like(state.solid.x)
+    if phys.has_fsi:
+        f = f.at[state.fsi.idx].add(state.fsi.force)
+    if phys.has_fpi:
+        f = f.at[state.fpi.idx].add(state.fpi.force)
+    return f
+
+
+def wet_grains(phys: Physics, state: State):
+    """(n_solid,) bool: grains with fluid neighbours, which lubricate each other (W24); None
+    when the scene has no lubrication."""
+    if not (phys.has_fpi and phys.lubrication):
+        return None
+    return jnp.zeros(state.solid.x.shape[0], bool).at[state.fpi.idx].set(state.fpi.wet > 0)
+
+
+def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
+                wet=None) -> State:
+    """Every force on the discs at the state's (x, θ, v, ω): contacts, walls, bonds (with
+    fracture at time state.t), gravity, external loads, the fluid's force ``f_fluid`` (held
+    over the sub-steps), lubrication between ``wet`` grains (W24), local and viscous
+    damping. Stores the accelerations, the contact histories and the bond state. ``dt`` is
+    the shear-spring increment (0: none)."""
+    dp, s, b = params.dem, state.solid, state.bonds
+    x, v, omega = s.x, s.v, s.omega
+    with jax.named_scope("dem.contacts"):
+        force, torque, shear, _ = dem.disc_contacts(dp, x, v, omega, s.radius, s.mass, s.fixed,
+                                                    state.solid_nbrs.idx, s.shear, dt)
+    wall_shear = s.wall_shear
+    if state.walls is not None:
+        with jax.named_scope("dem.walls"):
+            fw, tw, wall_shear, _ = dem.wall_contacts(dp, x, v, omega, s.radius, s.mass,
+                                                      state.walls.a, state.walls.b,
+                                                      wall_shear, dt)
+        force, torque = force + fw, torque + tw
+    if b is not None:
+        with jax.named_scope("bonds"):
+            fb, tb, alive, mode, fn, fs, m = bonds_law.bond_forces(
+                params.bond, phys.bond_section, phys.n_solid, x, s.theta, s.radius,
+                b.i, b.j, b.d0, b.e0, b.intact)
+            new = b.intact & ~alive
+            b = b.replace(intact=alive, fn=fn, fs=fs, m=m,
+                          t_break=jnp.where(new, state.t, b.t_break),
+                          mode=jnp.where(new, mode, b.mode))
+        force, torque = force + fb, torque + tb
+    g = jnp.asarray(params.gravity, x.dtype)
+    force = force + s.mass[:, None] * g + s.f_ext * dem.load_factor(dp.load_ramp, state.t)
+    if f_fluid is not None:
+        force = force + f_fluid
+    if wet is not None:
+        with jax.named_scope("fpi.lubrication"):
+            fp = params.fpi
+            force = force + fpi.lubrication_on_discs(x, v, s.radius, wet, state.solid_nbrs.idx,
+                                                     params.sph.mu, fp.lub_gap_min,
+                                                     fp.lub_cutoff)
+    with jax.named_scope("dem.local_damping"):
+        force = dem.local_damping(dp.alpha, force, v)
+        torque = dem.local_damping(dp.alpha, torque, omega)
+    with jax.named_scope("dem.viscous_damping"):
+        force = force + dem.viscous_damping(dp.damping, s.mass[:, None], v)
+        torque = torque + dem.viscous_damping(dp.damping, s.inertia, omega)
+    free = ~s.fixed
+    acc = jnp.where(free[:, None], force / s.mass[:, None], 0.0)
+    alpha = jnp.where(free, torque / s.inertia, 0.0)
+    return state.replace(solid=s.replace(acc=acc, alpha=alpha, shear=shear,
+                                         wall_shear=wall_shear), bonds=b)
+
+
+def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, wet) -> State:
+    """One DEM kick–drift–kick of length ``dt`` ending at time ``t``."""
+    s = state.solid
+    with jax.named_scope("integrate.solid_kick_drift"):
+        v_half = s.v + 0.5 * dt * s.acc
+        w_half = s.omega + 0.5 * dt * s.alpha
+        x_new = s.x + dt * v_half
+        th_new = s.theta + dt * w_half
+    with jax.named_scope("neighbors.dem_update"):
+        old = state.solid_nbrs
+        nbrs, rebuilt = neighbors.update(phys.dem_neighbors, old, x_new)
+        shear = jax.lax.cond(rebuilt, dem.remap_history, lambda o, h, n: h,
+                             old.idx, s.shear, nbrs.idx)
+    st = state.status
+    state = state.replace(
+        t=t, solid_nbrs=nbrs,
+        solid=s.replace(x=x_new, theta=th_new, v=v_half, omega=w_half, shear=shear),
+        status=st.replace(rebuilds=st.rebuilds + rebuilt.astype(jnp.int32),
+                          overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool)))
+    state = disc_forces(phys, params, state, dt, f_fluid, wet)
+    s = state.solid
+    with jax.named_scope("integrate.solid_kick"):
+        return state.replace(solid=s.replace(v=s.v + 0.5 * dt * s.acc,
+                                             omega=s.omega + 0.5 * dt * s.alpha))
+
+
+def discs(phys: Physics, params: Params, state: State) -> State:
+    """``phys.dem_substeps`` DEM steps of Δt/n covering one step (multi-rate stepping), the
+    fluid's force on the discs held at its value of the last SPH evaluation. ``state.t`` is
+    the time at the end of the step."""
+    n = phys.dem_substeps
+    dts = params.dt / n
+    t0 = (state.step - 1) * params.dt      # the time at the start of the step
+    f_fluid = fluid_force_on_discs(phys, state)
+    wet = wet_grains(phys, state)
+    # the loop carries the DEM part of the state only
+    part = State(t=state.t, step=state.step, fluid=None, boundary=None, nbrs=None,
+                 status=state.status, solid=state.solid, bonds=state.bonds,
+                 solid_nbrs=state.solid_nbrs, walls=state.walls)
+
+    def one(k, p):
+        return _disc_substep(phys, params, p, t0 + (k + 1) * dts, dts, f_fluid, wet)
+
+    if n == 1:
+        part = one(0, part)
+    else:
+        with jax.named_scope("integrate.dem_substeps"):
+            part = jax.lax.fori_loop(0, n, one, part)
+    return state.replace(solid=part.solid, bonds=part.bonds, solid_nbrs=part.solid_nbrs,
+                         status=part.status)
+
+
+def check_discs(phys: Physics, params: Params, state: State) -> State:
+    """Health codes 6–8 of the discs (non-finite, out of the domain); remember the first."""
+    return state.replace(status=health.check_solid(phys, state.solid, state.step,
+                                                   state.status))
+
+
+# --- SPH -------------------------------------------------------------------------------------
+def fluid_kick_drift(phys: Physics, params: Params, state: State) -> State:
+    """v½ = v + ½Δt a, x' = x + Δt (v½ + δv_XSPH): the fluid's ``v`` holds v½ until
+    :func:`fluid_kick`."""
+    dt, f = params.dt, state.fluid
+    with jax.named_scope("integrate.kick_drift"):
+        v_half = f.v + 0.5 * dt * f.acc
+        x_new = f.x + dt * (v_half + f.xsph)
+    return state.replace(fluid=f.replace(x=x_new, v=v_half))
+
+
+def fluid_neighbours(phys: Physics, params: Params, state: State) -> State:
+    """Update the SPH family's list at the new positions (rebuilt when a particle moved more
+    than half the skin); an overflow is flagged for the host to redo the chunk."""
+    with jax.named_scope("neighbors.update"):
+        nbrs, rebuilt = neighbors.update(phys.neighbors, state.nbrs, sph_positions(state))
+    st = state.status
+    return state.replace(nbrs=nbrs, status=st.replace(
+        overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool),
+        rebuilds=st.rebuilds + rebuilt.astype(jnp.int32)))
+
+
+def fluid_forces(phys: Physics, params: Params, state: State) -> State:
+    """Density, smoothing length and pressure at the new time level and the fluid's
+    acceleration (:func:`evaluate_fluid` with the step's Δt)."""
+    return evaluate_fluid(phys, params, state, params.dt)
+
+
+def evaluate_fluid(phys: Physics, params: Params, state: State, dt) -> State:
+    """One SPH evaluation at the fluid's x and v (v½ in a step): ρ' = ρ + dt Dρ/Dt (dt = 0:
+    no drift), h', P', then a' and δv_XSPH; the boundary pressure, and with couplings the
+    structure's pressure and the fluid's force on the structure discs (fsi.py) and on the
+    grains (fpi.py).
+
+    With grains the conserved density is ερ (W42): continuity advances ε_old ρ, the voidage
+    ε at the new positions turns it back into the intrinsic ρ that the EOS, the viscosity
+    and the walls see, the pressure bracket carries ε (``sph.voidage_bracket``), and the
+    grains' drag and buoyancy go back to the fluid by kernel weights (W47–W48). Without
+    grains none of this is traced."""
+    sp, kern, nf = params.sph, kernels.get(phys.kernel), phys.n_fluid
+    g = jnp.asarray(params.gravity)
+    f, b, fs, fp = state.fluid, state.boundary, state.fsi, state.fpi
+    nb = 0 if b is None else b.x.shape[0]
+    n_sph = nf + nb + (0 if fs is None else fs.idx.shape[0])
+    if fs is not None:
+        s = state.solid
+        xs_, vs_, as_ = s.x[fs.idx], s.v[fs.idx], s.acc[fs.idx]
+    else:
+        xs_ = vs_ = as_ = None
+    idx = state.nbrs.idx
+    rho = f.rho
+    if fp is not None:
+        idx, idx_g = jnp.minimum(idx[:n_sph], n_sph), idx[n_sph:]  # grains leave the sums
+        rho_c = fp.eps * rho
+        x_p, v_p, r_p = (state.solid.x[fp.idx], state.solid.v[fp.idx],
+                         state.solid.radius[fp.idx])
+        vol_p = jnp.pi * r_p * r_p        # V_p per unit thickness, like the disc's mass
+    else:
+        rho_c = rho
+    all_x = _cat(f.x, _opt(b, "x"), xs_)
+    all_h = _cat(f.h, _opt(b, "h"), _opt(fs, "h"))
+    all_m = _cat(f.mass, _opt(b, "mass"), _opt(fs, "mass"))
+    pr = pairs(kern, nf, all_x, _cat(f.v, None if b is None else jnp.zeros_like(b.x), vs_),
+               all_h, all_m, _cat(rho_c, _opt(b, "rho"), _opt(fs, "rho")), idx[:nf])
+
+    # density and smoothing length at the new time level
+    if fp is None:
+        drho = sph.density_rate(phys, sp, rho_c, pr)
+    else:
+        drho = sph.density_rate(phys, sp, rho_c, pr, fp.eps,
+                                _cat(rho, _opt(b, "rho"), _opt(fs, "rho")))
+    rho_c_new = rho_c + dt * drho
+    if phys.variable_h:
+        with jax.named_scope("sph.variable_h"):
+            h_new = f.h + dt * sph.smoothing_length_rate(f.h, rho_c, drho)
+    else:
+        h_new = f.h
+    if fp is not None:
+        with jax.named_scope("fpi.voidage"):
+            rows = fpi.grain_rows(kern, f.x, f.h, f.mass / rho_c_new, x_p, idx_g, nf)
+            eps_raw = fpi.fluid_voidage(rows.w, vol_p, rows.idx, rows.valid, nf, phys.voidage)
+            eps = jnp.maximum(eps_raw, phys.eps_floor)
+        rho_new = rho_c_new / eps
+    else:
+        rho_new = rho_c_new
+    with jax.named_scope("sph.eos"):
+        p_new = eos.pressure(rho_new, sp.rho0, sp.c0, sp.gamma)
+
+    # pressure of the walls and of the structure
+    if b is not None and phys.boundary_pressure is BoundaryPressure.EXTRAPOLATED:
+        with jax.named_scope("boundary.extrapolated"):
+            pb = boundary.extrapolated_pressure(
+                nf, kern, g, all_x, all_h, _cat(rho_new, b.rho, _opt(fs, "rho")),
+                _cat(p_new, b.p, _opt(fs, "p")), idx[nf:nf + nb])
+        b = b.replace(p=pb, rho=eos.density(pb, sp.rho0, sp.c0, sp.gamma))
+    if fs is not None and phys.fsi in (FsiMethod.EXTRAPOLATED,
+                                       FsiMethod.PRESSURE_APPROXIMATION):
+        rho_all = _cat(rho_new, _opt(b, "rho"), fs.rho)
+        p_all = _cat(p_new, _opt(b, "p"), fs.p)
+        if phys.fsi is FsiMethod.EXTRAPOLATED:
+            with jax.named_scope("fsi.extrapolated"):
+                ps = boundary.extrapolated_pressure(nf, kern, g, all_x, all_h, rho_all, p_all,
+                                                    idx[nf + nb:n_sph], acc_b=as_,
+                                                    first=nf + nb)
+        else:
+            with jax.named_scope("fsi.pressure_approximation"):
+                ps = fsi.approximate_pressure(kern, nf, all_x, all_h, rho_all, p_all, all_m,
+                                              idx[nf + nb:n_sph])
+        fs = fs.replace(p=ps, rho=eos.density(ps, sp.rho0, sp.c0, sp.gamma))
+
+    # momentum
+    bracket = None
+    if fs is not None and phys.fsi is FsiMethod.PRESSURE_GRADIENT:
+        first, n_s = nf + nb, phys.n_structure
+        bracket = (lambda coef, p_i, rho_i, rho_j, ix:
+                   fsi.pressure_gradient_bracket(coef, p_i, rho_i, rho_j, ix, first, n_s))
+    eps_all = None
+    if fp is not None:
+        eps_all = _cat(eps, None if b is None else jnp.ones_like(b.rho),
+                       None if fs is None else jnp.ones_like(fs.rho))
+    acc, xs, pair = sph.momentum_rate(
+        phys, kern, sp, g, _cat(rho_new, _opt(b, "rho"), _opt(fs, "rho")),
+        _cat(p_new, _opt(b, "p"), _opt(fs, "p")), pr, with_pairs=fs is not None,
+        eps=eps_all, structure_bracket=bracket)
+    if fs is not None:
+        with jax.named_scope("fsi.reaction"):
+            fs = fs.replace(force=fsi.reaction(pair, f.mass, pr.idx, nf + nb, phys.n_structure))
+
+    # the grains: drag, buoyancy and their reaction on the fluid
+    if fp is not None:
+        with jax.named_scope("fpi.drag"):
+            eps_p, u_f, wet, drag = fpi.grain_drag(rows, eps_raw, f.v, v_p, vol_p, 2.0 * r_p,
+                                                   sp.rho0, sp.mu, phys.voidage)
+        with jax.named_scope("fpi.buoyancy"):
+            if phys.fpi_pressure is FpiPressure.ARCHIMEDES:
+                lift = -(sp.rho0 * vol_p)[:, None] * g[None, :]
+            else:
+                lift = fpi.pressure_force(rows, p_new, vol_p)
+            force = drag + jnp.where((wet > 0)[:, None], lift, 0.0)
+        with jax.named_scope("fpi.reaction"):
+            wall = None if b is None else fpi.wall_share(kern, b.x, b.h, b.mass / b.rho, x_p,
+                                                         idx_g, nf)
+            acc = acc + fpi.reaction_acceleration(rows, force, f.mass, wall)
+        fp = fp.replace(eps=eps, eps_p=eps_p, u_f=u_f, wet=wet, force=force)
+    return state.replace(fluid=f.replace(rho=rho_new, h=h_new, acc=acc, xsph=xs), boundary=b,
+                         fsi=fs, fpi=fp)
+
+
+def fluid_kick(phys: Physics, params: Params, state: State) -> State:
+    """v' = v½ + ½Δt a'."""
+    f = state.fluid
+    with jax.named_scope("integrate.kick"):
+        return state.replace(fluid=f.replace(v=f.v + 0.5 * params.dt * f.acc))
+
+
+def check_fluid(phys: Physics, params: Params, state: State) -> State:
+    """Health codes 1–5 of the fluid (non-finite, density out of band, out of the domain) and
+    a smoothing length that outgrew the neighbour cut-off; remember the first."""
+    st = state.status
+    st = st.replace(h_exceeded=st.h_exceeded
+                    | (jnp.max(state.fluid.h) * 2.0 > phys.neighbors.r_cut))
+    return state.replace(status=health.check_fluid(phys, params, state.fluid, state.step, st))
+
+
+def mark_redo(phys: Physics, params: Params, state: State) -> State:
+    """Remember the first step that is not exact: an overflowed list dropped pairs of this
+    step; an h past the cut-off (the new h) would drop pairs of the next one."""
+    st, n = state.status, state.step
+    return state.replace(status=st.replace(redo_step=jnp.where(
+        (st.redo_step < 0) & (st.overflow | st.h_exceeded),
+        jnp.where(st.overflow, n, n + 1), st.redo_step)))
