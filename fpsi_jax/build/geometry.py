@@ -1,0 +1,140 @@
+"""Point sets and wall outlines (numpy): the geometry every builder starts from.
+
+``lattice`` fills a rectangle with SPH particles, ``hex_packing`` / ``square_packing`` with
+disc centres, ``touching_pairs`` finds the nearest-neighbour bonds of a packing,
+``tank_walls`` lays the fixed SPH boundary layers of an open tank and ``box_walls`` the DEM
+line walls of a box.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..model.errors import ParameterError
+from ..model.scene import BondBlock, WallBlock
+
+
+def lattice(x0, y0, width, height, dx):
+    """Cell-centred square lattice filling [x0, x0+width] × [y0, y0+height]."""
+    nx = max(1, int(round(width / dx)))
+    ny = max(1, int(round(height / dx)))
+    xs = x0 + (np.arange(nx) + 0.5) * dx
+    ys = y0 + (np.arange(ny) + 0.5) * dx
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    return np.stack([X.ravel(), Y.ravel()], axis=1)
+
+
+def hex_packing(x0, y0, width, height, d, first_row_long=True):
+    """Hexagonally packed disc centres (diameter d) in rows along x, filling the rectangle
+    [x0, x0+width] × [y0, y0+height] with every disc inside it. Rows are √3/2·d apart;
+    odd rows are shifted by d/2 (they hold one disc fewer)."""
+    s = math.sqrt(3.0) / 2.0 * d
+    n_rows = int(math.floor((height - d) / s + 1e-9)) + 1
+    n_long = int(math.floor(width / d + 1e-9))
+    if n_rows < 1 or n_long < 1:
+        raise ParameterError(f"a {width} × {height} rectangle holds no disc of diameter {d}")
+    pts = []
+    for r in range(n_rows):
+        shifted = (r % 2 == 1) == first_row_long
+        n = n_long - 1 if shifted else n_long
+        xs = x0 + d / 2 + (d / 2 if shifted else 0.0) + d * np.arange(n)
+        pts.append(np.stack([xs, np.full(n, y0 + d / 2 + r * s)], axis=1))
+    return np.concatenate(pts)
+
+
+def square_packing(x0, y0, width, height, d):
+    """Square-packed disc centres filling [x0, x0+width] × [y0, y0+height]."""
+    nx, ny = int(math.floor(width / d + 1e-9)), int(math.floor(height / d + 1e-9))
+    if nx < 1 or ny < 1:
+        raise ParameterError(f"a {width} × {height} rectangle holds no disc of diameter {d}")
+    X, Y = np.meshgrid(x0 + d / 2 + d * np.arange(nx), y0 + d / 2 + d * np.arange(ny),
+                       indexing="ij")
+    return np.stack([X.ravel(), Y.ravel()], axis=1)
+
+
+def touching_pairs(x, radius, tol=1e-6):
+    """Pairs (i < j) whose discs touch or overlap (|x_i − x_j| ≤ (R_i + R_j)(1 + tol)):
+    the nearest-neighbour bonds of a packing. Cell binning, O(n)."""
+    x = np.asarray(x, float)
+    r = np.broadcast_to(np.asarray(radius, float), (x.shape[0],))
+    cell = 2.0 * r.max() * (1 + tol)
+    key = np.floor((x - x.min(0)) / cell).astype(np.int64)
+    cells: dict = {}
+    for k, c in enumerate(map(tuple, key)):
+        cells.setdefault(c, []).append(k)
+    ii, jj = [], []
+    for (cx, cy), members in cells.items():
+        cand = [m for dx in (-1, 0, 1) for dy in (-1, 0, 1)
+                for m in cells.get((cx + dx, cy + dy), ())]
+        cand = np.asarray(cand)
+        for a in members:
+            b = cand[cand > a]
+            if b.size == 0:
+                continue
+            dist = np.linalg.norm(x[b] - x[a], axis=1)
+            ok = dist <= (r[a] + r[b]) * (1 + tol)
+            ii += [a] * int(ok.sum())
+            jj += list(b[ok])
+    order = np.lexsort((jj, ii))
+    return BondBlock(i=np.asarray(ii, np.int32)[order], j=np.asarray(jj, np.int32)[order])
+
+
+def tank_walls(width, height, dxb, layers):
+    """Fixed particles outside the open-top box [0, width] × [0, height]: floor + two walls,
+    ``layers`` deep, on a dxb lattice (corners filled)."""
+    t = layers * dxb
+    outer = lattice(-t, -t, width + 2 * t, height + t, dxb)
+    inside = (outer[:, 0] > 0) & (outer[:, 0] < width) & (outer[:, 1] > 0)
+    return outer[~inside]
+
+
+def box_walls(x0, y0, x1, y1, top=False):
+    """Line walls of an open-top box: floor, left and right (and the lid if ``top``)."""
+    a = [(x0, y0), (x0, y0), (x1, y0)]
+    b = [(x1, y0), (x0, y1), (x1, y1)]
+    if top:
+        a.append((x0, y1))
+        b.append((x1, y1))
+    return WallBlock(a=np.asarray(a, float), b=np.asarray(b, float))
+
+
+def inside_polygon(x, vertices) -> np.ndarray:
+    """(n,) bool: the points ``x`` (n, 2) that lie inside the closed polygon ``vertices``
+    (m, 2), by the even–odd rule (ray casting, vectorised over the points)."""
+    x = np.asarray(x, float)
+    v = np.asarray(vertices, float)
+    if v.ndim != 2 or v.shape[1] != 2 or v.shape[0] < 3:
+        raise ParameterError(f"polygon needs at least 3 vertices (m, 2), got {v.shape}")
+    px, py = x[:, 0:1], x[:, 1:2]
+    ax, ay = v[:, 0][None, :], v[:, 1][None, :]
+    bx, by = np.roll(v[:, 0], -1)[None, :], np.roll(v[:, 1], -1)[None, :]
+    crosses = (ay > py) != (by > py)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_at = ax + (py - ay) * (bx - ax) / (by - ay)
+    return np.sum(crosses & (px < x_at), axis=1) % 2 == 1
+
+
+def polygon_lattice(vertices, dx):
+    """Cell-centred square lattice of spacing ``dx`` filling the polygon ``vertices``: the
+    points of :func:`lattice` over its bounding box that lie inside it."""
+    v = np.asarray(vertices, float)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    pts = lattice(lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1], dx)
+    pts = pts[inside_polygon(pts, v)]
+    if pts.shape[0] == 0:
+        raise ParameterError(f"the polygon holds no lattice point at spacing dx = {dx}")
+    return pts
+
+
+def in_region(x, region) -> np.ndarray:
+    """(n,) bool: the points of ``x`` in ``region``, a rectangle (x0, y0, x1, y1), a polygon
+    (m, 2) of vertices, or a function of the (n, 2) positions returning a bool mask."""
+    x = np.asarray(x, float)
+    if callable(region):
+        return np.asarray(region(x), bool)
+    r = np.asarray(region, float)
+    if r.shape == (4,):
+        x0, y0, x1, y1 = r
+        return (x[:, 0] >= x0) & (x[:, 0] <= x1) & (x[:, 1] >= y0) & (x[:, 1] <= y1)
+    return inside_polygon(x, r)

@@ -1,0 +1,105 @@
+"""The public builders of fpsi_jax.build against hand-counted values."""
+import math
+
+import numpy as np
+import pytest
+
+from fpsi_jax import build
+from fpsi_jax.model.errors import ParameterError
+from fpsi_jax.physics import eos
+
+
+def test_inside_polygon_even_odd_rule():
+    tri = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)]
+    pts = np.array([[0.2, 0.2], [0.6, 0.6], [0.49, 0.49], [-0.1, 0.5], [0.5, -0.01]])
+    assert build.inside_polygon(pts, tri).tolist() == [True, False, True, False, False]
+    with pytest.raises(ParameterError):
+        build.inside_polygon(pts, [(0, 0), (1, 1)])
+
+
+def test_polygon_lattice_keeps_the_cells_inside():
+    # a 1 × 1 right triangle on a 0.1 lattice: cell centres (i+½, j+½)/10 with i + j + 1 < 10
+    pts = build.polygon_lattice([(0, 0), (1, 0), (0, 1)], 0.1)
+    assert pts.shape == (45, 2)
+    assert np.all(pts.sum(axis=1) < 1.0)
+
+
+def test_in_region_rectangle_polygon_and_function():
+    x = np.array([[0.0, 0.0], [1.0, 1.5], [2.0, 1.0]])
+    assert build.in_region(x, (0.5, 0.5, 1.5, 1.5)).tolist() == [False, True, False]
+    assert build.in_region(x, [(0.5, 0.5), (3, 0.5), (3, 3)]).tolist() == [False, False, True]
+    assert build.in_region(x, lambda p: p[:, 0] < 0.5).tolist() == [True, False, False]
+
+
+def test_fluid_rectangle_is_hydrostatic():
+    dx, rho0, c0, h = 0.01, 1000.0, 20.0, 0.0125
+    f = build.fluid_rectangle(0.0, 0.0, 0.1, 0.2, dx, rho0, c0, h)
+    assert f.n == 10 * 20
+    assert np.allclose(f.mass, rho0 * dx * dx) and np.allclose(f.h, h)
+    assert np.all(f.v == 0)
+    bottom = np.argmin(f.x[:, 1])
+    p = rho0 * build.G * (0.2 - f.x[bottom, 1])          # the surface at the block's top
+    assert f.rho[bottom] == pytest.approx(float(eos.density(p, rho0, c0, 7.0)), rel=1e-6)
+
+
+def test_fluid_polygon_counts_the_polygon_lattice():
+    f = build.fluid_polygon([(0, 0), (1, 0), (0, 1)], 0.1, 1000.0, 20.0, 0.125)
+    assert f.n == 45
+
+
+def test_tank_layers_cover_the_kernel_and_walls_follow_the_outline():
+    t = build.tank(0.6, 0.3, 0.005, 0.00625, 1000.0, dem_walls=True)
+    assert t.layers == math.ceil(2 * 0.00625 / 0.005) == 3
+    # open-top box: the outer lattice (0.6 + 2·0.015) × (0.3 + 0.015) minus the inside
+    assert t.boundary.n == 126 * 63 - 120 * 60
+    assert np.allclose(t.boundary.mass, 1000.0 * 0.005 ** 2) and np.all(t.boundary.p == 0)
+    assert t.walls.n == 3
+    lo, hi = t.domain(headroom=0.5)
+    pad = 3 * 0.005 + 2 * 0.00625
+    assert lo == pytest.approx((-pad, -pad)) and hi == pytest.approx((0.6 + pad, 0.45))
+    assert build.tank(0.6, 0.3, 0.005, 0.00625, 1000.0).walls is None
+
+
+def test_bonded_rectangle_mass_bonds_and_stiffness():
+    d, E, nu, rho = 0.0025, 1.0e7, 0.4, 1100.0
+    s = build.bonded_rectangle(0.0, 0.0, 0.01, 0.1, d, E, nu, rho, plane_strain=True)
+    nx, ny = 4, 40
+    assert s.solid.n == nx * ny
+    assert s.bonds.n == nx * (ny - 1) + ny * (nx - 1)           # square lattice neighbours
+    assert s.solid.mass.sum() == pytest.approx(rho * 0.01 * 0.1)  # mass per area is ρ
+    assert np.allclose(s.solid.volumes(), d * d)
+    e_ps = E / (1 - nu * nu)                                     # plane strain
+    assert float(s.bond.kn) * 1.01 == pytest.approx(e_ps / d)     # K42 with 1 % to contacts
+    assert s.kn * 1.01 == pytest.approx(0.01 * e_ps)
+    assert np.all(s.solid.structure)
+
+
+def test_clamp_and_move_set_kinematic_discs():
+    s = build.bonded_rectangle(0.0, 0.0, 0.01, 0.1, 0.0025, 1.0e7, 0.3, 1100.0)
+    top = build.clamp(s.solid, (-1, 0.098, 1, 1))
+    assert top.size == 4 and np.all(s.solid.fixed[top]) and np.all(s.solid.v[top] == 0)
+    lift = build.move(s.solid, (-1, -1, 1, 0.003), (0.0, 0.05))
+    assert lift.size == 4 and np.all(s.solid.fixed[lift])
+    assert np.allclose(s.solid.v[lift], [0.0, 0.05])
+    assert s.solid.fixed.sum() == 8
+    with pytest.raises(ParameterError, match="holds no disc"):
+        build.clamp(s.solid, (5, 5, 6, 6))
+
+
+def test_grain_bed_mass_and_count():
+    g = build.grain_bed(0.0, 0.0, 0.05, 0.02, 0.0025, 2650.0, n=30)
+    assert g.n == 30 and np.all(g.grain)
+    assert np.allclose(g.mass, 2650.0 * math.pi * 0.00125 ** 2)
+    assert np.all(g.x[:, 1] <= g.x[-1, 1] + 1e-12)                # bottom rows first
+    with pytest.raises(ParameterError):
+        build.grain_bed(0.0, 0.0, 0.05, 0.02, 0.0025, 2650.0, n=10_000)
+
+
+def test_merge_shifts_bond_indices():
+    g = build.grain_bed(0.0, 0.0, 0.01, 0.005, 0.0025, 2650.0)
+    s = build.bonded_rectangle(0.1, 0.0, 0.005, 0.005, 0.0025, 1.0e7, 0.3, 1100.0)
+    solid, bonds = build.merge(g, s)
+    assert solid.n == g.n + s.solid.n
+    assert bonds.n == s.bonds.n and int(bonds.i.min()) == g.n
+    assert solid.grain[:g.n].all() and not solid.grain[g.n:].any()
+    assert solid.structure[g.n:].all() and not solid.structure[:g.n].any()
