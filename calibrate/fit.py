@@ -99,7 +99,7 @@ class Calibration:
     def jacobian_fd(self, z, h: float = 0.05):
         """(forward-difference d residuals/dz with step ``h`` in z, (u, status) at z): a
         secant over a finite step, for losses whose pointwise derivative is dominated by
-        chaotic growth (long float32 SPH rollouts; see README)."""
+        chaotic growth (long float32 SPH rollouts; docs/design.md)."""
         z = jnp.asarray(z, self.dtype)
         r0, aux = self._call("residuals", z)
         cols = []

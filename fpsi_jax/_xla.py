@@ -16,7 +16,7 @@ over the neighbour axis of (N, K) arrays) on a CPU:
    away NaN or infinity (the finiteness checks of the driver still see them), does not
    replace a divide by a reciprocal, and keeps the accurate exp/log/pow. Results change at
    float round-off only (a sum over 35 slots in another order). The dam break's step went
-   from 2.2 to 1.6 ms at 6.9k particles and from 10.2 to 8.0 ms at 24k (README "Speed").
+   from 2.2 to 1.6 ms at 6.9k particles and from 10.2 to 8.0 ms at 24k (docs/performance.md).
 
 ``import fpsi_jax`` adds each group to ``XLA_FLAGS`` unless
 

@@ -165,7 +165,7 @@ class Status:
         made inexact (``redo_step``). A run that went unstable first is diagnosed as such:
         its state up to the bad step was computed with every pair, and regrowing the lists
         of a blown-up run only compiles ever larger programs (the tank at 12× its step:
-        6 regrowths and 13 s before the diagnosis, now 1 and 7 s)."""
+        6 regrowths and 13 s before the diagnosis when regrowing first, 1 and 7 s this way)."""
         if not (bool(self.overflow) or bool(self.h_exceeded)):
             return False
         return not (bool(self.bad) and int(self.step) < int(self.redo_step))

@@ -6,7 +6,7 @@ the pressure and drag forces they feel (W47–W48). They sit at the end of the S
 so each grain row of the list holds its fluid neighbours; everything here works on those rows
 (``idx`` (n_g, K), padding and non-fluid neighbours masked by ``valid``).
 
-Choices the seeds leave open (all documented in the README's design section):
+Choices the seeds leave open (docs/physics.md, docs/design.md):
 
 * Voidage. In 2D a disc packing's area fraction reaches 0.91 (ε = 0.09), far outside the
   3D packings that Ergun and Wen–Yu were fitted to; a 2D bed of touching discs would even be
@@ -16,7 +16,7 @@ Choices the seeds leave open (all documented in the README's design section):
   equations see is Physics.voidage:
   'area' — the area voidage ε₂ = 1 − Σ V_p W. Volumes add up (fluid ε V plus grains
   (1 − ε) V), so a fluid particle at rest beside a grain is in balance and a grain of the
-  fluid's density stays put (issue-5 figures: 0.03 d in 0.5 s). For isolated grains.
+  fluid's density stays put (it drifts 0.03 d in 0.5 s). For isolated grains.
   'mapped' — ε₃ as well. In a packed bed the fluid keeps 26 % of the space instead of 9 %;
   with 'area' the bed's light fluid particles (ε ≈ 0.1) were driven through the floor within
   200 steps. The price: volumes no longer add up (a grain of the fluid's density sinks, 4.6 d

@@ -32,7 +32,7 @@ A fourth method is ours, not K's:
                             the pressure it should (K41 is not normalised; K40 drops P_S), so
                             a fluid column compresses into the structure until the near-wall
                             pressure has doubled, and it leaks through a 5 mm plate at the
-                            seeds' resolution (README, design section).
+                            seeds' resolution (docs/design.md).
 
 In all of them the continuity equation and the Morris viscosity include the fluid–structure
 pairs (the structure is a moving wall for the fluid); anti-clump, XSPH and δ-SPH stay

@@ -81,7 +81,7 @@ def wall_repulsion_scalar(beta, c0, r0, is_wall, pr: Pairs):
     row) and acts on a particle about to pass between two wall particles (≤ Δx_wall/2 from
     both): the Adami wall pressure takes its value from the fluid around it, so a slow
     particle at the free surface of a corner meets a near-zero wall pressure and could
-    creep through the layers (README "Wall backstop"). Written in r² (no root, no divide) so
+    creep through the layers (docs/design.md, "Wall backstop"). Written in r² (no root, no divide) so
     it costs little per pair. Conservative, U = β c0²/6 (1 − r²/r0²)³, with stiffness at
     most β c0²/r0²: ``sph_dt`` keeps Δt ≤ r0/(c0 √β), half the leapfrog limit."""
     q = jnp.maximum(1.0 - pr.r2 * (1.0 / (r0 * r0)), 0.0)
@@ -153,7 +153,7 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
                     r_ij = jnp.where(pr.fluid_j, r_ij, 0.0)
                 coef = coef + r_ij
         # every pair term is a scalar times x_ij or v_ij: the four sums are then one
-        # variadic reduction over scalars (README "Speed")
+        # variadic reduction over scalars (docs/performance.md)
         s_dx = pressure_scalar(pr.m_j, coef, pr.f)
     with jax.named_scope("sph.viscosity"):
         s_v = viscous_scalar(sp.mu, sp.mu, rho_i, rho_j, pr)

@@ -153,7 +153,7 @@ def rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
     kept and the valid candidates are scattered straight into the K slots (slot K, cut
     off, takes the rest); more than K valid neighbours set the overflow flag as jax-md
     does, and the running count is :func:`_running_count`. 6.9k-particle dam break, as a
-    jitted call of its own: 7.4–7.8 ms against jax-md's 29–35 ms (README "Speed")."""
+    jitted call of its own: 7.4–7.8 ms against jax-md's 29–35 ms (docs/performance.md)."""
     cl = nbrs.cell_list_fn.update(xs, nbrs.cell_list_capacity)
     idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, nbrs.idx.shape[1])
     err = nbrs.error.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW,
