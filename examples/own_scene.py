@@ -9,12 +9,12 @@ dx, d = 0.01, 0.005                                  # fluid spacing, disc diame
 h = 1.25 * dx                                        # smoothing length
 v_max = build.dam_speed(0.3)                         # √(2 g H) of the 0.3 m column
 c0 = build.sound_speed(v_max)                        # c0 = 10 v_max
-tank = build.tank(0.8, 0.4, dx, h, rho0=1000.0, dem_walls=True)
+tank = build.tank(0.8, 0.6, dx, h, rho0=1000.0, dem_walls=True)
 water = build.fluid_rectangle(0.0, 0.0, 0.2, 0.3, dx, rho0=1000.0, c0=c0, h=h)
 post = build.bonded_rectangle(0.5, 0.0, 0.02, 0.15, d, E=5.0e6, nu=0.3, rho=1200.0,
                               plane_strain=True)
 build.clamp(post.solid, (0.49, 0.0, 0.53, 0.011))    # its two bottom rows are fixed
-lo, hi = tank.domain()
+lo, hi = tank.domain(headroom=1.0)                 # room for the splash above the walls
 scene = Scene(
     name="dam_break_on_post", domain_lo=lo, domain_hi=hi, v_max=v_max, t_end=0.6,
     params=Params(sph=SphParams(rho0=1000.0, c0=c0, mu=1.0e-3, dp=dx, alpha=0.02),
