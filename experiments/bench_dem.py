@@ -7,7 +7,10 @@ dry dam break (33 free discs, 3 walls, float32), with compile time and neighbour
 
 Writes experiments/results/bench_dem.json. Each case: compile (timed alone), one warm-up
 chunk of the same length (excluded: the first chunk), then ``--repeats`` timed chunks that
-continue the run; steps/s is the median over them (best and all are recorded too).
+continue the run; steps/s is the median over them (best and all are recorded too). A chunk
+whose neighbour lists overflow is grown and redone (``run_until_fits``, as the driver
+does); the redone chunk is the recompiled program's warm-up and the timing starts again
+from its end.
 Particle count = all discs, clamped ones included. The float32 case runs first because the
 float64 scenes switch jax_enable_x64 on for the rest of the process.
 
@@ -27,30 +30,23 @@ import statistics
 
 import jax
 
-from fpsi_jax import integrate, scenes
-from fpsi_jax.simulate import setup
+from fpsi_jax import cases, solver
+from fpsi_jax.run.simulate import setup
 
-from _bench import compile_and_warm_up, timed_chunk
+from _bench import compile_and_warm_up, timed_chunks
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def bench(name, steps, repeats, **kw):
-    sc = scenes.build(name, **kw)
+    sc = cases.build(name, **kw)
     phys, params = setup(sc)
-    p = params.as_arrays(integrate.dtype(phys))
-    st = integrate.init_state(sc, phys, p)
-    # warm-up chunk (excluded from the timing); lists grown if they overflow
-    phys, st, compiled, compile_s = compile_and_warm_up(phys, st, p, steps)
-    r0 = int(st.status.rebuilds)
-    walls = []
-    for _ in range(repeats):
-        st, wall = timed_chunk(compiled, st, p)
-        walls.append(wall)
-    if bool(st.status.bad) or bool(st.status.overflow):
-        raise RuntimeError(f"{name} bench went bad: code {int(st.status.code)} particle "
-                           f"{int(st.status.particle)} step {int(st.status.step)} overflow "
-                           f"{bool(st.status.overflow)}")
+    p = params.as_arrays(solver.dtype(phys))
+    st = solver.init_state(sc, phys, p)
+    # warm-up chunk (excluded from the timing)
+    phys, st, chunk, compile_s = compile_and_warm_up(phys, st, p, steps)
+    phys, start, st, walls, regrowths = timed_chunks(chunk, phys, st, repeats,
+                                                     same_start=False)
     n = sc.solid.n
     wall = statistics.median(walls)
     return {"case": name, "kwargs": kw, "n_discs": n, "n_clamped": int(sc.solid.fixed.sum()),
@@ -58,11 +54,12 @@ def bench(name, steps, repeats, **kw):
             "n_walls": sc.walls.n if sc.walls is not None else 0,
             "dtype": str(st.solid.x.dtype), "dt": float(params.dt),
             "neighbour_capacity": int(st.solid_nbrs.idx.shape[1]), "steps": steps,
-            "repeats": repeats, "t_timed_from": float(steps * params.dt),
+            "repeats": repeats, "t_timed_from": float(start.t),
             "t_timed_to": float(st.t), "compile_s": compile_s, "wall_s": wall,
             "wall_s_all": walls, "steps_per_s": steps / wall,
             "steps_per_s_best": steps / min(walls), "particle_steps_per_s": n * steps / wall,
-            "rebuilds": int(st.status.rebuilds) - r0, "steps_timed": steps * repeats}
+            "rebuilds": int(st.status.rebuilds) - int(start.status.rebuilds),
+            "regrowths_while_timing": regrowths, "steps_timed": steps * repeats}
 
 
 def main():

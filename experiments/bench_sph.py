@@ -1,14 +1,17 @@
-"""Speed of the full-physics SPH dam break (issue 2): particle-steps per second at about
-5k, 20k and 80k particles on this machine, with neighbour rebuilds and compile time.
+"""Speed of the full-physics SPH dam break: particle-steps per second at about 5k, 20k and
+80k particles on this machine, with neighbour rebuilds and compile time.
 
-    .venv/bin/python experiments/bench_sph.py [--steps 200] [--reps 5]
+    .venv/bin/python experiments/bench_sph.py [--steps 200] [--reps 5] [--out FILE]
 
-Each row times ``reps`` chunks of ``steps`` steps, every one from the same warmed-up state
-(the same work), and reports the median chunk (``particle_steps_per_s``) and the fastest
-(``best_particle_steps_per_s``): on this shared 2-core machine one chunk alone varied by
-up to 40 % from one run to the next. Writes experiments/results/bench_sph.json. Particle
-count = fluid + boundary particles (every particle sits in the neighbour list; only fluid
-rows are summed).
+Each row: compile (timed alone), one warm-up chunk (excluded), then ``reps`` chunks of
+``steps`` steps, every one from the same warmed-up state (the same work); it reports the
+median chunk (``particle_steps_per_s``) and the fastest (``best_particle_steps_per_s``): on
+this shared 2-core machine one chunk alone varied by up to 40 % from one run to the next. A
+chunk whose neighbour lists overflow is grown and redone (``run_until_fits``, as the driver
+does); the redone chunk is the recompiled program's warm-up and the timing starts again.
+Writes experiments/results/bench_sph.json (``--out``: another path). Particle count = fluid
++ boundary particles (every particle sits in the neighbour list; only fluid rows are
+summed).
 """
 from __future__ import annotations
 
@@ -21,53 +24,38 @@ import statistics
 import jax
 import jax.numpy as jnp
 
-from fpsi_jax import integrate, scenes
-from fpsi_jax.simulate import grow, reallocate, setup
+from fpsi_jax import cases, solver
+from fpsi_jax.run.simulate import setup
+from fpsi_jax.solver import timestep
 
-from _bench import compile_and_warm_up, needs_growth, timed_chunk
+from _bench import compile_and_warm_up, timed_chunks
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def bench(dx, steps, old_step=False, reps=5, **phys_opts):
-    """``old_step``: physics.md's 0.25 h/(c0+|v|) and the 0.25 h skin that went with it (the
-    figures before issue 7 changed the step to 0.875 h/(c0+|v|) and the skin to 0.4 h)."""
-    sc = scenes.build("dam_break", dx=dx)
-    dt = integrate.stable_dt(sc) * 0.25 / integrate.SPH_CFL if old_step else None
+    """``old_step``: physics.md's 0.25 h/(c0+|v|) and the 0.25 h skin that went with it,
+    instead of the default 0.875 h/(c0+|v|) and 0.4 h skin."""
+    sc = cases.build("dam_break", dx=dx)
+    dt = timestep.stable_dt(sc) * 0.25 / timestep.SPH_CFL if old_step else None
     if old_step:
         phys_opts = {"skin": 0.25, **phys_opts}
     phys, params = setup(sc, dt, **phys_opts)
     p = params.as_arrays(jnp.float32)
-    st = integrate.init_state(sc, phys, p)
-    # warm up into the flow (the column has started to move) before timing; lists grown
-    # as the driver would if they overflow
-    phys, st, compiled, compile_s = compile_and_warm_up(phys, st, p, steps)
-    for _ in range(4):               # a timed chunk that overflows is grown and redone
-        r0 = int(st.status.rebuilds)
-        walls = []
-        for _ in range(reps):
-            new, wall = timed_chunk(compiled, st, p)
-            walls.append(wall)
-            if needs_growth(new):
-                break
-        if not needs_growth(new):
-            break
-        phys = grow(phys, new)
-        phys, st, compiled, _ = compile_and_warm_up(phys, reallocate(phys, st), p, steps)
+    st = solver.init_state(sc, phys, p)
+    # warm up into the flow (the column has started to move) before timing
+    phys, st, chunk, compile_s = compile_and_warm_up(phys, st, p, steps)
+    phys, start, end, walls, regrowths = timed_chunks(chunk, phys, st, reps)
     wall, best = statistics.median(walls), min(walls)
-    st = new
     n = sc.fluid.n + sc.boundary.n
-    if bool(st.status.bad) or bool(st.status.overflow):
-        raise RuntimeError(f"bench run went bad: code {int(st.status.code)} particle "
-                           f"{int(st.status.particle)} step {int(st.status.step)} overflow "
-                           f"{bool(st.status.overflow)}")
     return {"dx": dx, "n_fluid": sc.fluid.n, "n_boundary": sc.boundary.n, "n_particles": n,
-            "neighbour_capacity": int(st.nbrs.idx.shape[1]), "steps": steps,
+            "neighbour_capacity": int(end.nbrs.idx.shape[1]), "steps": steps,
             "wall_s": wall, "wall_s_chunks": walls, "compile_s": compile_s,
             "particle_steps_per_s": n * steps / wall,
             "best_particle_steps_per_s": n * steps / best,
             "fluid_particle_steps_per_s": sc.fluid.n * steps / wall,
-            "rebuilds": int(st.status.rebuilds) - r0, "dt": float(params.dt),
+            "rebuilds": int(end.status.rebuilds) - int(start.status.rebuilds),
+            "regrowths_while_timing": regrowths, "dt": float(params.dt),
             "skin_over_h": float(phys.neighbors.skin / sc.fluid.h.min()),
             "old_step": old_step, "mechanisms": list(phys.mechanisms())}
 
@@ -79,6 +67,8 @@ def main():
     ap.add_argument("--dx", type=float, nargs="*", default=[0.0029, 0.00145, 0.00072])
     ap.add_argument("--no-old-step", action="store_true",
                     help="skip the rows at physics.md's step (0.25 h/(c0+|v|), skin 0.25 h)")
+    ap.add_argument("--out", default=os.path.join(HERE, "results", "bench_sph.json"),
+                    help="JSON file written (default experiments/results/bench_sph.json)")
     args = ap.parse_args()
     rows = []
     for dx, old in [(dx, old) for old in ((False,) if args.no_old_step else (False, True))
@@ -101,8 +91,8 @@ def main():
            "timing": f"median (and best) of {args.reps} chunks of {args.steps} steps from "
                      "the same warmed-up state",
            "rows": rows}
-    os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
-    with open(os.path.join(HERE, "results", "bench_sph.json"), "w") as fh:
+    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+    with open(args.out, "w") as fh:
         json.dump(out, fh, indent=1)
 
 

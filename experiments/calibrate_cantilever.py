@@ -1,4 +1,4 @@
-"""Issue 6: the cantilever calibrations.
+"""The cantilever calibrations.
 
     python experiments/calibrate_cantilever.py                    # all three + landscape
     python experiments/calibrate_cantilever.py --only synthetic --adam   # + the Adam loop

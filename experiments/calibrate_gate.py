@@ -1,4 +1,4 @@
-"""Issue 6: calibrate the elastic gate's stiffness (E) and viscous damping against the
+"""Calibrate the elastic gate's stiffness (E) and viscous damping against the
 Antoci et al. (2007) experiment, fitting on t ≤ 0.2 s and validating on 0.2–0.36 s.
 
     python experiments/calibrate_gate.py                  # coarse (fluid 3.5 mm, discs 2.5 mm)

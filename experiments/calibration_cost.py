@@ -1,4 +1,4 @@
-"""Issue 6: the cost of a gradient against a forward rollout, and what checkpointing buys.
+"""The cost of a gradient against a forward rollout, and what checkpointing buys.
 
     python experiments/calibration_cost.py                    # cantilever + coarse gate 0.2 s
     python experiments/calibration_cost.py --cases gate_seed  # the full 0.4 s gate, seed res.

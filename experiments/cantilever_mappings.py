@@ -15,8 +15,7 @@ import csv
 import os
 import time
 
-from fpsi_jax.validate_solids import cantilever_static
-from fpsi_jax.scenes.beams import tip_deflection
+from fpsi_jax.cases.cantilever import cantilever_static, tip_deflection
 
 CASES = [("square", "k42_split"), ("square", "k42"), ("hex", "lattice"), ("hex", "k42"),
          ("hex", "k42_plate"), ("hex", "k42_split")]

@@ -1,4 +1,4 @@
-"""Dam-break front Z(T) vs Koshizuka & Oka (1996) from a run's HDF5 file (issue 2).
+"""Dam-break front Z(T) vs Koshizuka & Oka (1996) from a run's HDF5 file.
 
     .venv/bin/fpsi run dam_break --out results/dam_break.h5 --plot     # (= make run)
     .venv/bin/python experiments/dam_break_front.py results/dam_break.h5
@@ -12,7 +12,8 @@ import sys
 
 import numpy as np
 
-from fpsi_jax import io, validate
+from fpsi_jax.cases.registry import load_csv
+from fpsi_jax.run import io
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -23,7 +24,7 @@ def main(path="results/dam_break.h5"):
     a, dx = kw["column_width"], kw["dx"]
     T = run.time * np.sqrt(2 * 9.81 / a)
     Z = (run.fluid["x"][:, :, 0].max(axis=1) + 0.5 * dx) / a
-    ref = validate.load_csv("koshizuka_oka1996_surge_front.csv")
+    ref = load_csv("koshizuka_oka1996_surge_front.csv")
     ref = ref[ref[:, 0] <= T.max()]
     z = np.interp(ref[:, 0], T, Z)
     os.makedirs(os.path.join(HERE, "results"), exist_ok=True)

@@ -3,7 +3,7 @@ low-confidence experimental points, run speed, and a strip of snapshots.
 
     taskset -c 0 .venv/bin/python experiments/dry_dam_break.py [--t-end 0.5] [--out results/dry_dam_break.h5]
 
-Runs scenes.build('dry_dam_break') (physical stiffness k_n = E = 69 GPa/m, dt at the DEM
+Runs cases.build('dry_dam_break') (physical stiffness k_n = E = 69 GPa/m, dt at the DEM
 bound, float32) with the CoM (mean of state.solid.x) observed every step, writes the HDF5
 to results/ (git-ignored) and, in experiments/results/: dry_dam_break_com.csv (CoM sim and
 experiment at t = 0, 0.1, 0.3, 0.5 s and their differences), dry_dam_break_com.png and
@@ -26,8 +26,10 @@ import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection, PatchCollection  # noqa: E402
 from matplotlib.patches import Circle  # noqa: E402
 
-from fpsi_jax import io, scenes, validate  # noqa: E402
-from fpsi_jax.simulate import simulate  # noqa: E402
+from fpsi_jax import cases  # noqa: E402
+from fpsi_jax.cases.registry import load_csv  # noqa: E402
+from fpsi_jax.run import io  # noqa: E402
+from fpsi_jax.run.simulate import simulate  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 EXP = "zhang2009_dry_cylinder_collapse_center_of_mass_experiment.csv"
@@ -69,7 +71,7 @@ def main():
     ap.add_argument("--t-end", type=float, default=0.5)
     ap.add_argument("--out", default="results/dry_dam_break.h5")
     args = ap.parse_args()
-    scene = scenes.build("dry_dam_break")
+    scene = cases.build("dry_dam_break")
     res = simulate(scene, t_end=args.t_end, output=args.out, every=0.01, progress=False,
                    observe=com)
     dt = float(res.params.dt)
@@ -87,7 +89,7 @@ def main():
     x0 = np.asarray(scene.solid.x).mean(axis=0)
     t = np.r_[0.0, dt * np.arange(1, res.n_steps + 1)]
     c = np.vstack([x0, res.observations])
-    ref = validate.load_csv(EXP)
+    ref = load_csv(EXP)
     tn, xe, ye = ref[:, 0], ref[:, 5], ref[:, 6]
     xs, ys = np.interp(tn, t, c[:, 0]), np.interp(tn, t, c[:, 1])
     table = np.c_[tn, xs, ys, xe, ye, xs - xe, ys - ye]

@@ -1,5 +1,5 @@
 """Elastic gate (Antoci et al. 2007) at the seed's resolution, every coupling method, and the
-multi-rate check (issue 4).
+multi-rate check.
 
     python experiments/elastic_gate.py                 # all four couplings, seed resolution
     python experiments/elastic_gate.py --multirate     # sub-stepped vs single-rate run
@@ -18,11 +18,12 @@ import time
 
 import numpy as np
 
-from fpsi_jax import fsi
-from fpsi_jax import overrides as ov
-from fpsi_jax.scenes.fsi_cases import GATE_COARSE as COARSE
-from fpsi_jax.simulate import SimulationError, simulate
-from fpsi_jax.validate_fsi import gate_metrics, plot_gate, tip_displacement, tip_observer
+from fpsi_jax.cases import overrides as ov
+from fpsi_jax.cases.elastic_gate import GATE_COARSE as COARSE
+from fpsi_jax.cases.elastic_gate import gate_metrics, plot_gate, tip_displacement, tip_observer
+from fpsi_jax.model.errors import SimulationError
+from fpsi_jax.model.options import FsiMethod
+from fpsi_jax.run.simulate import simulate
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 
@@ -95,7 +96,7 @@ def multirate(args):
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
-    ap.add_argument("--methods", nargs="*", default=list(fsi.METHODS))
+    ap.add_argument("--methods", nargs="*", default=[m.value for m in FsiMethod])
     ap.add_argument("--multirate", action="store_true")
     ap.add_argument("--coarse", action="store_true")
     ap.add_argument("--t-end", type=float, default=0.4)

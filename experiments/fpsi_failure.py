@@ -1,5 +1,5 @@
 """Fluid–particle–structure interaction with failure (W6.3), cases I (σ̄_c = 4e4 Pa) and II
-(2e4 Pa) to 0.2 s (issue 5).
+(2e4 Pa) to 0.2 s.
 
     python experiments/fpsi_failure.py [--cases I II] [--set key=value ...]
 
@@ -18,9 +18,9 @@ import time
 
 import numpy as np
 
-from fpsi_jax import io
-from fpsi_jax import overrides as ov
-from fpsi_jax.simulate import setup, simulate
+from fpsi_jax.cases import overrides as ov
+from fpsi_jax.run import io
+from fpsi_jax.run.simulate import setup, simulate
 
 try:
     from two_phase_dam_break import snapshots

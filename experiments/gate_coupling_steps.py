@@ -1,11 +1,11 @@
-"""Issue 7: why a structure coupled to the fluid keeps physics.md's step coefficients.
+"""Why a structure coupled to the fluid keeps physics.md's step coefficients.
 
     python experiments/gate_coupling_steps.py                      # the default grid
     python experiments/gate_coupling_steps.py 0.25,0.2 0.875,0.55   # SPH,DEM coefficient pairs
 
 The coarse elastic gate (fluid 3.5 mm, discs 2.5 mm) run for 0.36 s with the SPH step at
 ``sph`` h/(c0 + |v|) and the DEM sub-step at ``dem`` √(m/k) (the derived ones are 0.25 and
-0.2, ``integrate.FSI_SPH_CFL`` and ``FSI_DEM_DT_FACTOR``; a fluid-only or DEM-only scene
+0.2, ``solver.timestep.FSI_SPH_CFL`` and ``FSI_DEM_DT_FACTOR``; a fluid-only or DEM-only scene
 gets 0.875 and 0.55). Records the peak tip ux, its time and the RMS of ux, uy against the
 experiment (relative to its peak), as ``fpsi validate`` measures them. The converged
 answer (half of both derived steps) is the reference: the question is which larger steps
@@ -21,10 +21,10 @@ import time
 
 import numpy as np
 
-from fpsi_jax import integrate, scenes
-from fpsi_jax.scenes.fsi_cases import GATE_COARSE
-from fpsi_jax.simulate import simulate
-from fpsi_jax.validate_fsi import gate_metrics, tip_displacement, tip_observer
+from fpsi_jax import cases
+from fpsi_jax.cases.elastic_gate import GATE_COARSE, gate_metrics, tip_displacement, tip_observer
+from fpsi_jax.run.simulate import simulate
+from fpsi_jax.solver import timestep
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results", "gate_coupling_steps.json")
@@ -33,10 +33,10 @@ DEFAULT = ("0.125,0.1", "0.25,0.2", "0.25,0.55", "0.375,0.2", "0.5,0.2", "0.5,0.
 
 
 def run(sph_c: float, dem_c: float, t_end: float = 0.36) -> dict:
-    sc = scenes.build("elastic_gate", **GATE_COARSE)
+    sc = cases.build("elastic_gate", **GATE_COARSE)
     p = sc.params
-    dt = integrate.sph_dt(sc, p) * sph_c / integrate.FSI_SPH_CFL
-    sub = integrate.dem_dt(sc, p) * dem_c / integrate.FSI_DEM_DT_FACTOR
+    dt = timestep.sph_dt(sc, p) * sph_c / timestep.FSI_SPH_CFL
+    sub = timestep.dem_dt(sc, p) * dem_c / timestep.FSI_DEM_DT_FACTOR
     n = max(1, math.ceil(dt / sub - 1e-9))
     t0 = time.perf_counter()
     res = simulate(sc, t_end, dt=dt, dem_substeps=n, unsafe_dt=True, progress=False,

@@ -1,4 +1,4 @@
-"""The elastic gate with weak bonds (scene ``gate_failure``): fracture sequence (issue 4).
+"""The elastic gate with weak bonds (scene ``gate_failure``): fracture sequence.
 
     python experiments/gate_failure.py [--coarse] [--set sigma_c=1e5 ...]
 
@@ -15,10 +15,10 @@ import time
 
 import numpy as np
 
-from fpsi_jax import io
-from fpsi_jax import overrides as ov
-from fpsi_jax.scenes.fsi_cases import GATE_COARSE
-from fpsi_jax.simulate import simulate
+from fpsi_jax.cases import overrides as ov
+from fpsi_jax.cases.elastic_gate import GATE_COARSE
+from fpsi_jax.run import io
+from fpsi_jax.run.simulate import simulate
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 

@@ -1,4 +1,4 @@
-"""Issue 6: reverse-mode gradients through rollouts against central finite differences.
+"""Reverse-mode gradients through rollouts against central finite differences.
 
     python experiments/gradient_check.py                # cantilever (d 1.25 mm) + gate 0.05 s
     python experiments/gradient_check.py --cases gate
@@ -30,7 +30,7 @@ from calibrate import cases, space as sp  # noqa: E402
 from calibrate.fit import Calibration  # noqa: E402
 from calibrate.rollout import prepare  # noqa: E402
 from calibrate.targets import StaticDeflection, Trajectory  # noqa: E402
-from fpsi_jax.scenes import build  # noqa: E402
+from fpsi_jax.cases import build  # noqa: E402
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 STEPS_H = (1e-3, 1e-4, 1e-5)
@@ -44,7 +44,7 @@ def cantilever_problem(n_steps=4000, d=0.00125):
 
 def gate_problem(t_end=0.05):
     scene = build("elastic_gate", damping=5.0, **cases.GATE_COARSE)
-    from fpsi_jax.scenes.fsi_cases import gate_tip
+    from fpsi_jax.cases.elastic_gate import gate_tip
     space0 = sp.ParamSpace(scene.params, [sp.stiffness(0.25, 4.0)])
     return prepare(scene, t_end, cases.tracker(scene, gate_tip(scene)),
                    stiffest=space0.extreme("hi"), x64=True)

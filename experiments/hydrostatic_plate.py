@@ -1,4 +1,4 @@
-"""Plate clamped at both ends under still water (K6.3.3) at the seed's resolution (issue 4).
+"""Plate clamped at both ends under still water (K6.3.3) at the seed's resolution.
 
     python experiments/hydrostatic_plate.py [--coarse] [--shear-factors 20 1]
 
@@ -15,9 +15,8 @@ import time
 
 import numpy as np
 
-from fpsi_jax import overrides as ov
-from fpsi_jax.scenes.fsi_cases import plate_deflection, plate_reference
-from fpsi_jax.validate_fsi import plate_run
+from fpsi_jax.cases import overrides as ov
+from fpsi_jax.cases.hydrostatic_plate import plate_deflection, plate_reference, plate_run
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 

@@ -1,4 +1,4 @@
-"""Hydrostatic tank: smoothing length against the residual velocity (issue 2's figures).
+"""Hydrostatic tank: smoothing length against the residual velocity.
 
     python experiments/hydrostatic_tank_h.py                 # dx 5 mm, h/dx 1.25 and 1.5
     python experiments/hydrostatic_tank_h.py --dx 0.01 --h 1.25 1.5 1.7
@@ -19,8 +19,9 @@ import time
 import jax.numpy as jnp
 import numpy as np
 
-from fpsi_jax import scenes, sph
-from fpsi_jax.simulate import simulate
+from fpsi_jax import cases
+from fpsi_jax.physics import eos
+from fpsi_jax.run.simulate import simulate
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 
@@ -32,7 +33,7 @@ def observer(s):
 
 
 def run(dx, h_factor, t_end=2.0):
-    sc = scenes.build("hydrostatic_tank", dx=dx, h_factor=h_factor, t_end=t_end)
+    sc = cases.build("hydrostatic_tank", dx=dx, h_factor=h_factor, t_end=t_end)
     H = sc.builder_kwargs["depth"]
     g = 9.81
     vref = math.sqrt(g * H)
@@ -45,7 +46,7 @@ def run(dx, h_factor, t_end=2.0):
     k = int(np.argmax(v))
     f, sp = res.state.fluid, res.params.sph
     y = np.asarray(f.x[:, 1])
-    p = np.asarray(sph.eos_pressure(f.rho, sp.rho0, sp.c0, sp.gamma))
+    p = np.asarray(eos.pressure(f.rho, sp.rho0, sp.c0, sp.gamma))
     below = y < H - 3 * dx
     p_ref = float(sp.rho0) * g * (H - y[below])
     return {"dx": dx, "h_over_dx": h_factor, "n_fluid": sc.fluid.n, "steps": res.n_steps,

@@ -1,7 +1,7 @@
-"""Peers side by side on this machine (issue 7 item 4): the same case (2D dam break), a
-similar particle count and the same number of steps, for us and for PySPH; particle-steps/s
-of each and our ratio, with the fixed figures measured here earlier for the peers that no
-registry installs (DualSPHysics 5.4, JAX-SPH 0.1.0).
+"""Peers side by side on this machine: the same case (2D dam break), a similar particle
+count and the same number of steps, for us and for PySPH; particle-steps/s of each and our
+ratio, with the fixed figures measured here earlier for the peers that no registry installs
+(DualSPHysics 5.4, JAX-SPH 0.1.0).
 
     nice -n 10 .venv/bin/python experiments/peers.py                # install PySPH, 5k + 20k
     nice -n 10 .venv/bin/python experiments/peers.py --sizes 5000 20000 80000 --steps 200
@@ -37,11 +37,12 @@ PySPH
 What is timed
     Both sides: ``steps`` steps after a warm-up of ``steps`` steps, wall clock only, so no
     compile, build or set-up is in it. Ours: ``bench(dx, steps)`` of bench_sph.py (XLA
-    compile, one warm-up chunk, then one timed chunk of ``steps`` steps, neighbour rebuilds
-    included). PySPH: the driver's post_step callback reads time.perf_counter() after step
-    ``steps`` and after step ``2·steps`` (Cython generation and compile happen in
-    Application.setup, before the first step, and are cached under ~/.pysph). Particle
-    count = fluid + boundary particles on both sides (everything in the neighbour search).
+    compile, one warm-up chunk, then the median of timed chunks of ``steps`` steps from the
+    warmed-up state, neighbour rebuilds included). PySPH: the driver's post_step callback
+    reads time.perf_counter() after step ``steps`` and after step ``2·steps`` (Cython
+    generation and compile happen in Application.setup, before the first step, and are
+    cached under ~/.pysph). Particle count = fluid + boundary particles on both sides
+    (everything in the neighbour search).
     Best of --repeat runs on each side; PySPH is run with each of --omp-wait-policy
     (default: libgomp's own, and PASSIVE) in every round, since libgomp's spinning threads
     lose many times over when another process holds a core (seen here: 0.3 s → 5 s for 100
@@ -52,9 +53,9 @@ What is timed
     tells how many cores it actually got. While every run of a size was loaded, up to
     --extra-tries more rounds follow; a figure still loaded is marked ``loaded`` in the
     JSON, "~" in the table and hollow in the plot: it understates that side, re-run when
-    the machine is quiet. If our timed chunk overflows the neighbour lists (bench grows
-    them in its warm-up only; seen at dx = 3.5 mm), bench is called again with
-    capacity_multiplier 1.5 (then 2.0), recorded as ``capacity_multiplier``.
+    the machine is quiet. A timed chunk of ours that overflows the neighbour lists (seen
+    at dx = 3.5 mm) is grown and redone inside bench (``run_until_fits``, as the driver
+    does; recorded as ``regrowths_while_timing``).
 """
 from __future__ import annotations
 
@@ -343,8 +344,8 @@ def pysph_run(venv, driver, dx, steps, threads, wait_policy):
 # --- ours --------------------------------------------------------------------------------
 
 def our_count(dx):
-    from fpsi_jax import scenes
-    sc = scenes.build("dam_break", dx=dx)
+    from fpsi_jax import cases
+    sc = cases.build("dam_break", dx=dx)
     return sc.fluid.n + sc.boundary.n
 
 
@@ -374,21 +375,12 @@ def git_state():
 
 
 def ours_run(dx, steps):
-    """bench(dx, steps); if the timed chunk overflows the neighbour lists (bench grows them
-    only in its warm-up), again with more allocation slack (capacity_multiplier)."""
+    """bench(dx, steps) of bench_sph.py (lists that overflow are grown and the chunk redone
+    inside it), with the load of other processes over the call."""
     import jax
     from bench_sph import bench
     t0, c0, b0 = time.perf_counter(), time.process_time(), cpu_busy_s()
-    for mult in (None, 1.5, 2.0):
-        try:
-            r = bench(dx, steps) if mult is None else bench(dx, steps, capacity_multiplier=mult)
-            break
-        except RuntimeError as e:
-            if "overflow True" not in str(e) or mult == 2.0:
-                raise
-            print(f"    (neighbour list overflow in the timed chunk; again with more "
-                  f"capacity)", flush=True)
-    r["capacity_multiplier"] = mult or "default (1.25)"
+    r = bench(dx, steps)
     t1, c1, b1 = time.perf_counter(), time.process_time(), cpu_busy_s()
     r["other_load_cores"] = max(0.0, (b1 - b0 - (c1 - c0)) / (t1 - t0))
     r["other_load_over"] = "the whole bench() call (compile, warm-up and timed chunk)"
@@ -639,7 +631,7 @@ def main():
         "machine": machine_info(),
         "case": "2D dam break, same number of steps on both sides, particle count matched "
                 "(fluid + boundary particles)",
-        "ours_case": "scenes.dam_break (Koshizuka & Oka: 0.146 × 0.292 m column, 0.584 m "
+        "ours_case": "cases.dam_break (Koshizuka & Oka: 0.146 × 0.292 m column, 0.584 m "
                      "tank; full physics: continuity, EOS, pressure + anti-clump, Morris "
                      "viscosity, artificial viscosity, XSPH, variable h, delta-SPH, "
                      "extrapolated boundary; leapfrog, one neighbour pass per step; float32)",

@@ -1,5 +1,4 @@
-"""Single-grain sedimentation in the Glowinski channel (W6.2.1) and its resolution dependence
-(issue 5).
+"""Single-grain sedimentation in the Glowinski channel (W6.2.1) and its resolution dependence.
 
     python experiments/sedimentation.py [--quick]
 
@@ -18,10 +17,10 @@ import time
 
 import numpy as np
 
-from fpsi_jax import overrides as ov
-from fpsi_jax.validate import load_csv
-from fpsi_jax.validate_fpi import (SEDIMENTATION_REFERENCE, grain_run, sedimentation_metrics,
-                                   terminal_slip)
+from fpsi_jax.cases import overrides as ov
+from fpsi_jax.cases.registry import load_csv
+from fpsi_jax.cases.sedimentation import (SEDIMENTATION_REFERENCE, grain_run,
+                                          sedimentation_metrics, terminal_slip)
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 

@@ -1,7 +1,7 @@
-"""Skip what a scene does not need, measured (issue 7 item 3): for every registered scene,
-the mechanisms and neighbour lists compiled into its step, the step time of that specialised
-program, and the step time of the same scene with every mechanism forced on but masked so
-that it contributes nothing.
+"""Skip what a scene does not need, measured: for every registered scene, the mechanisms
+and neighbour lists compiled into its step, the step time of that specialised program, and
+the step time of the same scene with every mechanism forced on but masked so that it
+contributes nothing.
 
     nice -n 10 .venv/bin/python experiments/specialisation.py [--scenes LABEL ...]
         [--target-s 1.0] [--min-rounds 7] [--max-rounds 40] [--cpu 0]
@@ -110,8 +110,10 @@ CASES = {
     "dam_break": ("dam_break", dict(dx=0.01), {}, 100),
     # the same with the optional SPH terms off: masking them costs per pair
     "dam_break (minimal SPH)": ("dam_break", dict(dx=0.01), MINIMAL_SPH, 100),
-    "collision": ("collision", {}, {}, 200),       # discs leave the box after ~430 steps
-    "rolling": ("rolling", {}, {}, 250),           # the disc reaches the floor's end at ~600
+    # the warm-up and check chunks run 2 x steps from t = 0 and must end before a disc
+    # leaves the box (the run stops there with SimulationError)
+    "collision": ("collision", {}, {}, 80),        # a disc leaves the box at step 176
+    "rolling": ("rolling", {}, {}, 150),           # the disc leaves the floor at step 331
     "dry_dam_break": ("dry_dam_break", {}, {}, 2000),
     "wall_impact": ("wall_impact", {}, {}, 60),    # the grain leaves the box after ~150
     "itasca_beam": ("itasca_beam", {}, {}, 2000),
@@ -146,8 +148,8 @@ def _dummy_tank(x0, y0, s, dt, gravity):
     """A 3 × 2 block of fluid at spacing ``s`` in a tank of boundary particles, hydrostatic,
     lower-left outer corner at (x0, y0). c0 keeps its acoustic step ≥ 2 Δt. Returns
     (fluid, boundary, SphParams, width, height)."""
-    from fpsi_jax.scenes._build import (boundary_block, boundary_layers, hydrostatic_fluid,
-                                        lattice, sph_params, tank_walls)
+    from fpsi_jax.build import (boundary_block, boundary_layers, hydrostatic_fluid, lattice,
+                                sph_params, tank_walls)
     h = 1.25 * s
     layers = boundary_layers(h, s)
     t = layers * s
@@ -165,8 +167,8 @@ def _dummy_tank(x0, y0, s, dt, gravity):
 
 def _solid_with(scene, real_structure, real_grain, x, r, structure, grain):
     """The scene's discs followed by fixed dummy discs at ``x`` (radius r), masks explicit."""
-    from fpsi_jax.scene import SolidBlock
-    from fpsi_jax.scenes._solids import disc_block
+    from fpsi_jax.build import disc_block
+    from fpsi_jax.model.scene import SolidBlock
     d = disc_block(np.asarray(x, float), r, 1000.0, fixed=np.ones(len(x), bool))
     so = scene.solid
     if so is None:
@@ -185,8 +187,8 @@ def masked_scene(scene, phys, dt):
     """(scene with the inert dummies, its Physics overrides, its Params, the dummies added,
     notes on what could not be forced): see the module docstring. ``phys`` is the
     specialised Physics, ``dt`` its time step."""
-    from fpsi_jax.params import BondParams, DemParams, FpiParams
-    from fpsi_jax.scene import BondBlock, WallBlock
+    from fpsi_jax.model.params import BondParams, DemParams, FpiParams
+    from fpsi_jax.model.scene import BondBlock, WallBlock
     so = scene.solid
     r_real = float(np.max(so.radius)) if so is not None else 0.0
     h_real = float(np.max(scene.fluid.h)) if scene.fluid is not None else 0.0
@@ -282,8 +284,8 @@ def hlo_scopes(phys, state, params):
     bodies (the DEM sub-steps), which are relative ("dem.contacts/...", no "jit(step)/")."""
     import jax
 
-    from fpsi_jax import integrate
-    text = jax.jit(integrate.step, static_argnums=0).lower(phys, state, params).as_text(
+    from fpsi_jax import solver
+    text = jax.jit(solver.step, static_argnums=0).lower(phys, state, params).as_text(
         debug_info=True)
     scopes = set()
     for loc in re.findall(r'loc\("([^"]*)"', text):
@@ -295,37 +297,26 @@ def hlo_scopes(phys, state, params):
 def prepare(scene, steps, dt=None, params=None, unsafe_dt=False, **opts):
     """Setup, initial state, compiled chunk and warm-up (``_bench``), then one more chunk
     from the warm-up's end: the timed chunks start there, so their lists must not overflow
-    either (grown and recompiled as the driver would). Returns a dict."""
-    import jax
-    from _bench import _run, compile_and_warm_up
+    either (grown, reallocated and recompiled by ``run_until_fits``, as the driver does).
+    Returns a dict."""
+    from _bench import compile_and_warm_up
 
-    from fpsi_jax import integrate
-    from fpsi_jax.simulate import grow, reallocate, setup
+    from fpsi_jax import solver
+    from fpsi_jax.run.simulate import run_until_fits, setup
     phys, prm = setup(scene, dt=dt, params=params, unsafe_dt=unsafe_dt, **opts)
-    p = prm.as_arrays(integrate.dtype(phys))
-    st0 = integrate.init_state(scene, phys, p)
+    p = prm.as_arrays(solver.dtype(phys))
+    st0 = solver.init_state(scene, phys, p)
     scopes = hlo_scopes(phys, st0, p)
-    phys, st, compiled, compile_s = compile_and_warm_up(phys, st0, p, steps)
-    warm = st
-    while True:
-        end, _ = compiled(st, p)
-        jax.block_until_ready(end)
-        if not (bool(end.status.overflow) or bool(end.status.h_exceeded)):
-            break
-        phys = grow(phys, end)
-        st = reallocate(phys, st)
-        compiled = _run.lower(phys, st, p, steps, None).compile()
-    return dict(phys=phys, params=prm, p=p, warm=warm, start=st, compiled=compiled,
+    phys, warm, chunk, compile_s = compile_and_warm_up(phys, st0, p, steps)
+    c = run_until_fits(chunk, phys, warm, chunk.dt)
+    return dict(phys=c.phys, params=prm, p=p, warm=warm, start=c.state, chunk=chunk,
                 compile_s=compile_s, scopes=scopes, times=[], end=None)
 
 
 def run_chunk(prog):
-    """Time one chunk from the program's post-warm-up state."""
-    import jax
-    t0 = time.perf_counter()
-    end, _ = prog["compiled"](prog["start"], prog["p"])
-    jax.block_until_ready(end)
-    prog["times"].append(time.perf_counter() - t0)
+    """Time one chunk from the program's post-warm-up state (compiled by ``prepare``)."""
+    end, wall = prog["chunk"](prog["phys"], prog["start"])
+    prog["times"].append(wall)
     prog["end"] = end
 
 
@@ -362,9 +353,9 @@ def summary(prog, steps):
 
 # --- one scene (worker) -----------------------------------------------------------------
 def bench_scene(label, target_s, min_rounds, max_rounds):
-    from fpsi_jax import scenes
+    from fpsi_jax.cases import build
     name, kw, popts, steps = CASES.get(label, (label, {}, {}, DEFAULT_STEPS))
-    scene = scenes.build(name, **kw)
+    scene = build(name, **kw)
     spec = prepare(scene, steps, **popts)
     dt, sub = float(spec["params"].dt), spec["phys"].dem_substeps
     msc, opts, mparams, added, notes = masked_scene(scene, spec["phys"], dt)
@@ -410,9 +401,9 @@ def worker(args):
 # --- driver -----------------------------------------------------------------------------
 def cases():
     """Every row of CASES, then every registered scene no row covers (defaults)."""
-    from fpsi_jax import scenes
+    from fpsi_jax.cases import SCENES
     covered = {c[0] for c in CASES.values()}
-    return list(CASES) + [n for n in scenes.SCENES if n not in covered]
+    return list(CASES) + [n for n in SCENES if n not in covered]
 
 
 def run_worker(label, args):

@@ -1,4 +1,4 @@
-"""Issue 7: stability stress tests.
+"""Stability stress tests.
 
     python experiments/stability.py                 # everything (~30 min on 2 cores)
     python experiments/stability.py --what dt stiffness tank10 overlap impact break
@@ -26,9 +26,11 @@ import time
 
 import numpy as np
 
-from fpsi_jax import scenes, stability
-from fpsi_jax.scenes.fsi_cases import GATE_COARSE
-from fpsi_jax.simulate import SimulationError, simulate
+from fpsi_jax.cases import build
+from fpsi_jax.cases.elastic_gate import GATE_COARSE
+from fpsi_jax.model.errors import SimulationError
+from fpsi_jax.run import stability
+from fpsi_jax.run.simulate import simulate
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results")
@@ -65,11 +67,11 @@ def load(section):
     return json.load(open(path)).get(section, {}) if os.path.exists(path) else {}
 
 
-def dt_sweep(cases):
+def dt_sweep(names):
     out = load("dt")                       # other cases' rows are kept
-    for name in cases:
+    for name in names:
         scene_name, kw, t_end, dem, v_limit = DT_CASES[name]
-        sc = scenes.build(scene_name, **kw)
+        sc = build(scene_name, **kw)
         t_end = t_end or sc.t_end
         t0 = time.perf_counter()
         rows = stability.sweep(sc, t_end, FACTORS, dem=dem, refine=3, v_limit=v_limit)
@@ -101,7 +103,7 @@ def stiffness_map():
             ("dry dam break k_n", "dry_dam_break", "kn", 69.0e9, {}, 0.05)):
         rows = []
         for s in (0.01, 0.1, 1.0, 10.0, 100.0):
-            sc = scenes.build(scene_name, **{**kw, key: base * s})
+            sc = build(scene_name, **{**kw, key: base * s})
             te = t_end or min(sc.t_end, 0.02)
             probes = stability.sweep(sc, te, (1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0))
             rows.append({"scale": s, key: base * s, "derived_dt": stability.derived(sc)[0],
@@ -139,7 +141,7 @@ def plot_map(out):
 
 def tank10(dx=0.01, t_end=10.0):
     import jax.numpy as jnp
-    sc = scenes.build("hydrostatic_tank", dx=dx, t_end=t_end)
+    sc = build("hydrostatic_tank", dx=dx, t_end=t_end)
     g = 9.81
     H = sc.builder_kwargs["depth"]
     sp = sc.params.sph
@@ -209,7 +211,7 @@ def overlap():
     out = {}
 
     def discs():
-        sc = scenes.build("collision", radius=0.005, speed=0.01, kn=1.0e5, beta=0.1,
+        sc = build("collision", radius=0.005, speed=0.01, kn=1.0e5, beta=0.1,
                           gap=-0.005, t_end=0.01)        # 50 % of R overlap at rest
         res = simulate(sc, progress=False)
         v = np.asarray(res.state.solid.v)
@@ -218,7 +220,7 @@ def overlap():
                 "momentum": (m[:, None] * v).sum(0).tolist(), "finite": bool(np.isfinite(v).all())}
 
     def fluid():
-        sc = scenes.build("dam_break", dx=0.01, t_end=0.1)
+        sc = build("dam_break", dx=0.01, t_end=0.1)
         sc.fluid.x[1] = sc.fluid.x[0]                   # two particles at one point
         res = simulate(sc, progress=False)
         v = np.asarray(res.state.fluid.v)
@@ -237,7 +239,7 @@ def overlap():
 def impact():
     out = {}
     for angle in (0.0, 45.0):
-        sc = scenes.build("wall_impact", speed=10.0, angle=angle)
+        sc = build("wall_impact", speed=10.0, angle=angle)
         r = float(sc.solid.radius[0])
         beta = float(sc.params.dem.beta_n)
 
@@ -263,7 +265,7 @@ def impact():
 
 
 def mass_break():
-    sc = scenes.build("gate_failure", **GATE_COARSE, sigma_c=1.0e3, tau_c=1.0e3, t_end=0.1)
+    sc = build("gate_failure", **GATE_COARSE, sigma_c=1.0e3, tau_c=1.0e3, t_end=0.1)
 
     def run():
         res = simulate(sc, progress=False)

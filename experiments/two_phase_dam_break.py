@@ -1,5 +1,5 @@
 """Two-phase dam break (W6.2.2, after Sun, Sakai & Yamada 2013): fluid and grain fronts and
-snapshots every 0.05 s (issue 5).
+snapshots every 0.05 s.
 
     python experiments/two_phase_dam_break.py [--set key=value ...]
 
@@ -19,9 +19,9 @@ import time
 import jax.numpy as jnp
 import numpy as np
 
-from fpsi_jax import io
-from fpsi_jax import overrides as ov
-from fpsi_jax.simulate import setup, simulate
+from fpsi_jax.cases import overrides as ov
+from fpsi_jax.run import io
+from fpsi_jax.run.simulate import setup, simulate
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 

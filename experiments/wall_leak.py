@@ -15,15 +15,17 @@ import time
 
 import numpy as np
 
-from fpsi_jax import io, scenes
-from fpsi_jax.simulate import SimulationError, simulate
+from fpsi_jax import cases
+from fpsi_jax.model.errors import SimulationError
+from fpsi_jax.run import io
+from fpsi_jax.run.simulate import simulate
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 T_END, EVERY, TANK = 0.45, 0.002, 0.5
 
 
 def one(wall_repulsion, folder):
-    scene = scenes.build("elastic_gate", tank_length=TANK)
+    scene = cases.build("elastic_gate", tank_length=TANK)
     out = os.path.join(folder, f"leak_{wall_repulsion}.h5")
     t0 = time.perf_counter()
     error = None
