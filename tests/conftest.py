@@ -14,8 +14,8 @@ if ROOT not in sys.path:
 @pytest.fixture
 def tiny_tank():
     """A 10 cm tank of water, 2 cm spacing: ~25 fluid particles, compiles in seconds."""
-    from fpsi_jax import scenes
-    return scenes.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1, t_end=0.02)
+    from fpsi_jax import cases
+    return cases.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1, t_end=0.02)
 
 
 @pytest.fixture(scope="module")
@@ -31,21 +31,21 @@ def float64():
 @pytest.fixture(scope="session")
 def step_hlo():
     """``step_hlo(scene, dtype=float32, **physics_options) -> (text, scopes, files)``: the
-    lowered ``integrate.step`` of a scene, the ``jax.named_scope`` components of its op
-    locations ("jit(step)/dem.contacts/...") and the Python files its ops were traced from.
-    Proves a mechanism is absent from the compiled program."""
+    lowered ``fpsi_jax.solver.forward.step`` of a scene, the ``jax.named_scope`` components
+    of its op locations ("jit(step)/dem.contacts/...") and the Python files its ops were
+    traced from. Proves a mechanism is absent from the compiled program."""
     import re
 
     import jax.numpy as jnp
 
-    from fpsi_jax import integrate
-    from fpsi_jax.simulate import setup
+    from fpsi_jax.run.simulate import setup
+    from fpsi_jax.solver import forward, init
 
     def lower(scene, dtype=jnp.float32, **opts):
         phys, params = setup(scene, **opts)
         p = params.as_arrays(dtype)
-        st = integrate.init_state(scene, phys, p)
-        text = jax.jit(integrate.step, static_argnums=0).lower(phys, st, p).as_text(
+        st = init.init_state(scene, phys, p)
+        text = jax.jit(forward.step, static_argnums=0).lower(phys, st, p).as_text(
             debug_info=True)
         scopes = set()
         # absolute ("jit(step)/dem.contacts/...") and, inside loops such as the DEM

@@ -1,15 +1,13 @@
-"""Material mappings of the bonds (params.k42_mapping, lattice_mapping, hexagonal_strength)
-against numbers worked out by hand, and the refusals of Params.validate / Scene.validate for
-the solid phase."""
+"""Material mappings of the bonds (fpsi_jax.build.materials: k42_mapping, lattice_mapping,
+hexagonal_strength, shear_modulus) against numbers worked out by hand, and their refusals of
+bad input."""
 import math
 
-import numpy as np
 import pytest
 
-from fpsi_jax.params import (BondParams, DemParams, ParameterError, Params, hexagonal_strength,
-                             k42_mapping, lattice_mapping, shear_modulus)
-from fpsi_jax.scene import BondBlock, Scene
-from fpsi_jax.scenes._solids import disc_block
+from fpsi_jax.build import hexagonal_strength, k42_mapping, lattice_mapping, shear_modulus
+from fpsi_jax.model.errors import ParameterError
+
 
 # K6.3.3's rubber: E = 10 MPa, ν = 0.33, discs d = 1.25 mm
 E, NU, R = 10.0e6, 0.33, 0.000625
@@ -115,71 +113,3 @@ def test_hexagonal_strength_numbers():
     h2 = hexagonal_strength(1.0e6, 0.25, 0.005, thickness=3.0, lam=0.5)
     assert h2["sigma_c"] == pytest.approx(h["sigma_c"], rel=REL)
     assert h2["fn_crit"] == pytest.approx(h["fn_crit"] * 1.5, rel=REL)
-
-
-# --- Params.validate ---------------------------------------------------------------------
-@pytest.mark.parametrize("params, word", [
-    (Params(dem=DemParams(kn=-1.0)), "dem.kn"),
-    (Params(dem=DemParams(kn=0.0)), "dem.kn"),
-    (Params(dem=DemParams(beta_n=1.0)), "dem.beta_n"),
-    (Params(dem=DemParams(beta_s=1.5)), "dem.beta_s"),
-    (Params(dem=DemParams(mu=-0.1)), "dem.mu"),
-    (Params(dem=DemParams(alpha=1.0)), "dem.alpha"),
-    (Params(dem=DemParams(load_ramp=-1.0)), "dem.load_ramp"),
-    (Params(dem=DemParams(), bond=BondParams(thickness=0.0)), "bond.thickness"),
-    (Params(dem=DemParams(), bond=BondParams(kn=0.0)), "bond.kn"),
-    (Params(dem=DemParams(), bond=BondParams(sigma_c=-1.0)), "bond.sigma_c"),
-    (Params(dem=DemParams(), bond=BondParams(beta_bar=1.5)), "bond.beta_bar"),
-    (Params(dem=DemParams(), bond=BondParams(lam=1.2)), "bond.lam"),
-])
-def test_params_validate_refuses(params, word):
-    with pytest.raises(ParameterError, match=word.replace(".", r"\.")):
-        params.validate()
-
-
-def test_params_validate_accepts_defaults():
-    p = Params(dem=DemParams(beta_n=0.999), bond=BondParams())
-    assert p.validate() is p
-    assert p.set("dem.kn", 2.0e6).dem.kn == 2.0e6
-    with pytest.raises(ParameterError, match=r"dem\.beta_n"):
-        p.set("dem.beta_n", 1.0)
-
-
-# --- Scene.validate for solids -----------------------------------------------------------
-def _bonded(i=(0,), j=(1,), mass=None):
-    x = np.array([[0.02, 0.05], [0.03, 0.05], [0.04, 0.05]])
-    blk = disc_block(x, 0.005, 2700.0)
-    if mass is not None:
-        blk.mass[:] = mass
-    return Scene(name="b", params=Params(dem=DemParams(), bond=BondParams()),
-                 domain_lo=(0.0, 0.0), domain_hi=(0.1, 0.1), v_max=1.0, solid=blk,
-                 bonds=BondBlock(i=np.asarray(i, np.int32), j=np.asarray(j, np.int32)))
-
-
-def test_scene_validate_accepts_good_bonds():
-    assert _bonded((0, 1), (1, 2)).validate().bonds.n == 2
-
-
-@pytest.mark.parametrize("i, j, word", [
-    ((0,), (3,), "out of range"),
-    ((-1,), (1,), "out of range"),
-    ((0, 1), (1, 7), "out of range"),
-    ((1,), (1,), r"i == j"),
-])
-def test_scene_validate_refuses_bad_bonds(i, j, word):
-    with pytest.raises(ParameterError, match=word):
-        _bonded(i, j).validate()
-
-
-def test_scene_validate_refuses_zero_disc_mass():
-    with pytest.raises(ParameterError, match=r"solid\.mass\[0\]"):
-        _bonded(mass=np.array([0.0, 1.0, 1.0])).validate()
-    with pytest.raises(ParameterError, match=r"solid\.mass\[2\]"):
-        _bonded(mass=np.array([1.0, 1.0, -1.0])).validate()
-
-
-def test_scene_validate_refuses_bonds_without_bond_params():
-    sc = _bonded()
-    sc.params = Params(dem=DemParams())
-    with pytest.raises(ParameterError, match=r"params\.bond is None"):
-        sc.validate()

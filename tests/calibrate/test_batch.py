@@ -6,9 +6,8 @@ import subprocess
 import sys
 
 import numpy as np
-import pytest
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 SCRIPT = r"""
 import json, sys
@@ -19,7 +18,7 @@ from calibrate import batch, cases, space as sp
 from calibrate.fit import Calibration
 from calibrate.rollout import prepare
 from calibrate.targets import StaticDeflection
-from fpsi_jax.scenes import build
+from fpsi_jax.cases import build
 
 scene = build("cantilever", variant="tip", alpha=0.0, damping=20.0, d=0.0025, length=0.04)
 pr = prepare(scene, 300 * 2.7e-6, cases.tracker(scene, cases.cantilever_tip(scene)),

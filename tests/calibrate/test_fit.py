@@ -1,7 +1,8 @@
 """calibrate.rollout / fit / cases on a short cantilever (x64): checkpointed rollouts equal
 plain ones, reverse-mode gradients through ≥ 2000 steps match central finite differences
-within 1 %, forward- and reverse-mode agree, and a synthetic fit recovers stiffness and
-damping (tests/test_calibrate_cli.py). (The full-size figures are in experiments/calibrate_cantilever.py.)"""
+within 1 %, and forward- and reverse-mode agree. That a synthetic fit recovers stiffness and
+damping is tested in tests/cli/test_calibrate_cli.py; the full-size figures are in
+experiments/calibrate_cantilever.py."""
 import numpy as np
 import pytest
 
@@ -9,11 +10,11 @@ import jax
 import jax.numpy as jnp
 
 from calibrate import cases, space as sp
-from calibrate.fit import Calibration, fit, gauss_newton_stderr
+from calibrate.fit import Calibration, gauss_newton_stderr
 from calibrate.rollout import checkpointed_rollout, prepare
 from calibrate.targets import StaticDeflection, Trajectory, total_residuals
-from fpsi_jax import integrate
-from fpsi_jax.scenes import build
+from fpsi_jax.cases import build
+from fpsi_jax.solver import forward, init
 
 pytestmark = pytest.mark.usefixtures("float64")
 
@@ -33,8 +34,8 @@ def tip_problem(float64):
 @pytest.mark.parametrize("remat_step", [False, True])
 def test_checkpointed_rollout_equals_plain_rollout(tip_problem, remat_step):
     pr = tip_problem
-    s0 = integrate.refresh_rates(pr.phys, pr.state0, pr.params)
-    a, oa = jax.jit(lambda s: integrate.rollout(pr.phys, s, pr.params, 107, pr.observe))(s0)
+    s0 = init.refresh_rates(pr.phys, pr.state0, pr.params)
+    a, oa = jax.jit(lambda s: forward.rollout(pr.phys, s, pr.params, 107, pr.observe))(s0)
     b, ob = jax.jit(lambda s: checkpointed_rollout(pr.phys, s, pr.params, 107, pr.observe,
                                                    chunk=10, remat_step=remat_step))(s0)
     np.testing.assert_allclose(np.asarray(ob), np.asarray(oa), rtol=0, atol=1e-15)
@@ -82,8 +83,8 @@ def test_gate_gradient_matches_central_differences():
     (experiments/gradient_check.py records the figures)."""
     import importlib.util
     import os
-    path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                        "experiments", "gradient_check.py")
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    path = os.path.join(root, "experiments", "gradient_check.py")
     spec = importlib.util.spec_from_file_location("gradient_check", path)
     gc = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gc)

@@ -1,13 +1,11 @@
 """calibrate.space: the transforms between physical values and the optimiser's z."""
-import math
-
 import jax
 import jax.numpy as jnp
-import numpy as np
 import pytest
 
 from calibrate import space as sp
-from fpsi_jax.params import BondParams, DemParams, ParameterError, Params
+from fpsi_jax.model.errors import ParameterError
+from fpsi_jax.model.params import BondParams, DemParams, Params
 
 pytestmark = pytest.mark.usefixtures("float64")
 

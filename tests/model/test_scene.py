@@ -1,72 +1,56 @@
-"""Physics is derived from the scene; absent mechanisms are absent from the compiled step."""
+"""The scene (fpsi_jax.model.scene): Scene.validate refuses particles outside the domain and
+bad bonds, disc masses and missing bond parameters."""
+import numpy as np
 import pytest
 
-from fpsi_jax import scenes
-from fpsi_jax.params import ParameterError
-from fpsi_jax.scene import Physics
-
-
-def test_switched_off_terms_are_not_compiled(tiny_tank, step_hlo):
-    # the named scopes of the ops, not the raw text: its locations also hold the traceback
-    # of the call that first traced the step (e.g. ".../tests/test_dem.py")
-    _, off, off_files = step_hlo(tiny_tank, delta_sph=False, artificial_viscosity=False,
-                                 xsph=False)
-    _, on, on_files = step_hlo(tiny_tank, delta_sph=True, artificial_viscosity=True, xsph=True)
-    for scope in ("sph.delta", "sph.artificial_viscosity", "sph.xsph"):
-        assert scope in on
-        assert scope not in off
-    # a fluid-only scene has no DEM, bond or coupling code at all
-    for scope in ("dem.", "bonds.", "fsi.", "fpi."):
-        assert not [s for s in on | off if s.startswith(scope)]
-        assert scope + "py" not in on_files | off_files
-    assert "sph.continuity" in off and "sph.pressure" in off
-
-
-def test_fixed_boundary_has_no_extrapolation(tiny_tank, step_hlo):
-    fixed = step_hlo(tiny_tank, boundary_pressure="fixed")[1]
-    extra = step_hlo(tiny_tank, boundary_pressure="extrapolated")[1]
-    assert "boundary.extrapolated" in extra and "boundary.extrapolated" not in fixed
-
-
-def test_physics_is_hashable_and_lists_mechanisms(tiny_tank):
-    a = Physics.for_scene(tiny_tank)
-    b = Physics.for_scene(tiny_tank)
-    assert hash(a) == hash(b) and a == b
-    assert "sph.continuity" in a.mechanisms()
-    assert "sph.delta" in Physics.for_scene(tiny_tank, delta_sph=True).mechanisms()
-
-
-@pytest.mark.parametrize("opts, word", [
-    ({"kernel": "gauss"}, "kernel"),
-    ({"boundary_pressure": "magic"}, "boundary_pressure"),
-    ({"h_margin": 5.0}, "h_margin"),
-    ({"bogus": 1}, "bogus"),
-])
-def test_bad_physics_options_are_refused(tiny_tank, opts, word):
-    with pytest.raises((ParameterError, ValueError), match=word):
-        Physics.for_scene(tiny_tank, **opts)
+from fpsi_jax import cases
+from fpsi_jax.build import disc_block
+from fpsi_jax.model.errors import ParameterError
+from fpsi_jax.model.params import BondParams, DemParams, Params
+from fpsi_jax.model.scene import BondBlock, Scene
 
 
 def test_scene_rejects_particles_outside_domain():
-    sc = scenes.hydrostatic_tank(dx=0.02, depth=0.1, width=0.1)
+    sc = cases.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1)
     sc.fluid.x[3] = (10.0, 10.0)
     with pytest.raises(ParameterError, match="fluid particle 3 .* outside the domain"):
         sc.validate()
 
 
-@pytest.mark.parametrize("key, value, word", [
-    ("dx", 0.0, "dx"), ("depth", -1.0, "depth"), ("rho0", float("nan"), "rho0"),
+def _bonded(i=(0,), j=(1,), mass=None):
+    x = np.array([[0.02, 0.05], [0.03, 0.05], [0.04, 0.05]])
+    blk = disc_block(x, 0.005, 2700.0)
+    if mass is not None:
+        blk.mass[:] = mass
+    return Scene(name="b", params=Params(dem=DemParams(), bond=BondParams()),
+                 domain_lo=(0.0, 0.0), domain_hi=(0.1, 0.1), v_max=1.0, solid=blk,
+                 bonds=BondBlock(i=np.asarray(i, np.int32), j=np.asarray(j, np.int32)))
+
+
+def test_scene_validate_accepts_good_bonds():
+    assert _bonded((0, 1), (1, 2)).validate().bonds.n == 2
+
+
+@pytest.mark.parametrize("i, j, word", [
+    ((0,), (3,), "out of range"),
+    ((-1,), (1,), "out of range"),
+    ((0, 1), (1, 7), "out of range"),
+    ((1,), (1,), r"i == j"),
 ])
-def test_builder_refuses_bad_values(key, value, word):
+def test_scene_validate_refuses_bad_bonds(i, j, word):
     with pytest.raises(ParameterError, match=word):
-        scenes.build("hydrostatic_tank", **{key: value})
+        _bonded(i, j).validate()
 
 
-def test_params_set_and_resolve():
-    sc = scenes.hydrostatic_tank(dx=0.02, depth=0.1, width=0.1)
-    p = sc.params.set("mu", 2e-3)
-    assert p.sph.mu == 2e-3 and p.get("sph.mu") == 2e-3
-    with pytest.raises(ParameterError, match="eps_xsph"):
-        sc.params.set("eps_xsph", 1.5)
-    with pytest.raises(ParameterError, match="unknown parameter"):
-        sc.params.set("nope", 1.0)
+def test_scene_validate_refuses_zero_disc_mass():
+    with pytest.raises(ParameterError, match=r"solid\.mass\[0\]"):
+        _bonded(mass=np.array([0.0, 1.0, 1.0])).validate()
+    with pytest.raises(ParameterError, match=r"solid\.mass\[2\]"):
+        _bonded(mass=np.array([1.0, 1.0, -1.0])).validate()
+
+
+def test_scene_validate_refuses_bonds_without_bond_params():
+    sc = _bonded()
+    sc.params = Params(dem=DemParams())
+    with pytest.raises(ParameterError, match=r"params\.bond is None"):
+        sc.validate()

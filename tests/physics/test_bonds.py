@@ -1,9 +1,10 @@
-"""Unit tests of the parallel bonds (fpsi_jax.bonds; physics.md §Parallel bonds).
+"""Unit tests of the parallel bonds (fpsi_jax.physics.bonds; physics.md §Parallel bonds).
 
 One bond between two discs placed by hand: section, stretch, bending, shear, rigid motion,
 agreement with the incremental law K17–K20 for small displacements, fracture in tension
-(with and without the moment term) and in shear; then through integrate.step (a broken bond
-stays broken, the break is recorded) and gradients with respect to k̄_n (float64).
+(with and without the moment term) and in shear, and the gradient of the bond force with
+respect to k̄_n (float64). Bonds inside the step are tested in tests/solver/test_stages.py
+and tests/solver/test_forward.py.
 """
 import math
 
@@ -12,12 +13,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from fpsi_jax import bonds, integrate, scenes
-from fpsi_jax.params import BondParams, DemParams, Params
-from fpsi_jax.scene import BondBlock, Physics, Scene
-from fpsi_jax.scenes._solids import disc_block
+from fpsi_jax.model.params import BondParams
+from fpsi_jax.physics import bonds
 
 pytestmark = pytest.mark.usefixtures("float64")  # conftest: x64 for this module only
+
 
 RTOL = 1e-12
 KN, KS = 1.0e9, 4.0e8
@@ -178,34 +178,6 @@ def test_rigid_rotation_beyond_half_a_turn_gives_no_load(phi):
     np.testing.assert_allclose([fn[0], fs[0]], 0.0, atol=1e-9 * scale)
 
 
-def test_spinning_bonded_pair_keeps_small_loads_past_half_a_turn():
-    """Two bonded discs spinning rigidly at Ω = 600 rad/s about their centre for 0.6 turn.
-    Before θ = π the loads stay below ~800 N (centrifugal stretch and its oscillation)."""
-    W = 600.0
-    c = np.array([0.05, 0.05])
-    x = np.array([c - [R, 0.0], c + [R, 0.0]])
-    blk = disc_block(x, R, 2700.0, v=W * np.array([[0.0, -R], [0.0, R]]))
-    blk.omega[:] = W
-    sc = Scene(name="spin", params=Params(
-        gravity=(0.0, 0.0), dt=2e-5, dem=DemParams(kn=1.0e7, ks=0.0, mu=0.0),
-        bond=BondParams(kn=KN, ks=KS)),
-        domain_lo=(0.0, 0.0), domain_hi=(0.1, 0.1), v_max=10.0, solid=blk,
-        bonds=BondBlock(i=np.array([0], np.int32), j=np.array([1], np.int32))).validate()
-    phys = Physics.for_scene(sc, x64=True)
-    p = sc.params.as_arrays(jnp.float64)
-    st = integrate.init_state(sc, phys, p)
-    n = int(math.ceil(1.2 * math.pi / (W * 2e-5)))
-    end, (fn, fs, th) = jax.jit(integrate.rollout, static_argnums=(0, 3, 4))(
-        phys, st, p, n, lambda s: (s.bonds.fn[0], s.bonds.fs[0], s.solid.theta[0]))
-    fn, fs, th = (np.asarray(a) for a in (fn, fs, th))
-    assert th.max() > 3.0
-    first = np.arange(n) < np.argmax(th > 3.0)               # before half a turn: fine
-    assert first.sum() > 200
-    assert np.abs(fn[first]).max() < 2000.0 and np.abs(fs[first]).max() < 500.0
-    assert th.max() > math.pi                                # it did pass half a turn
-    assert np.abs(fn).max() < 2000.0 and np.abs(fs).max() < 500.0
-
-
 def test_total_form_agrees_with_incremental_law_for_small_displacements():
     """Integrate K17–K20 along a curved path of small motions (translation, a small rigid
     rotation, stretch, sideways shear, independent disc rotations; strains ~1e-4) and compare
@@ -336,69 +308,7 @@ def test_fracture_never_heals_and_reports_only_new_breaks():
     assert fn[0] == 0.0
 
 
-# --- through the stepper ------------------------------------------------------------------
-def _pair_scene(sigma_c=1.0e6, dt=1e-6):
-    x = np.array([[0.05, 0.05], [0.05 + D0, 0.05]])
-    blk = disc_block(x, R, 2700.0)
-    return Scene(name="pair", params=Params(
-        gravity=(0.0, 0.0), dt=dt, dem=DemParams(kn=1.0e7, ks=0.0, mu=0.0),
-        bond=BondParams(kn=KN, ks=KS, sigma_c=sigma_c)),
-        domain_lo=(0.0, 0.0), domain_hi=(0.1, 0.1), v_max=1.0, solid=blk,
-        bonds=BondBlock(i=np.array([0], np.int32), j=np.array([1], np.int32))).validate()
-
-
-def test_broken_bond_stays_broken_in_step():
-    """Stretch beyond σ̄_c/k̄_n = 1 mm: breaks at step 1 (t = Δt, mode tension). Then pushed
-    back into compression the pair meets through the contact law only, the bond stays broken
-    and its record unchanged."""
-    sc = _pair_scene()
-    phys = Physics.for_scene(sc, x64=True)
-    p = sc.params.as_arrays(jnp.float64)
-    st = integrate.init_state(sc, phys, p)
-    assert bool(st.bonds.intact[0]) and float(st.bonds.t_break[0]) == -1.0
-    step = jax.jit(integrate.step, static_argnums=0)
-    s = st.solid
-    st = st.replace(solid=s.replace(x=s.x.at[1, 0].add(2e-3)))
-    st = step(phys, st, p)
-    b = st.bonds
-    assert not bool(b.intact[0]) and int(b.mode[0]) == 1
-    assert float(b.t_break[0]) == pytest.approx(1e-6, rel=1e-12)
-    np.testing.assert_array_equal(np.asarray(st.solid.acc), 0.0)      # nothing acts now
-    # compress by 1e-4: contact only, k_n δ = 1e3 N (an intact bond would add k̄_n A δ)
-    s = st.solid
-    x = s.x.at[1, 0].set(s.x[0, 0] + D0 - 1e-4)
-    st = st.replace(solid=s.replace(x=x, v=jnp.zeros_like(s.v), acc=jnp.zeros_like(s.acc)))
-    st = step(phys, st, p)
-    m = float(sc.solid.mass[1])
-    np.testing.assert_allclose(np.asarray(st.solid.acc)[1], [1.0e7 * 1e-4 / m, 0.0],
-                               rtol=1e-9, atol=1e-6)
-    for _ in range(3):
-        st = step(phys, st, p)
-        b = st.bonds
-        assert not bool(b.intact[0]) and int(b.mode[0]) == 1
-        assert float(b.t_break[0]) == pytest.approx(1e-6, rel=1e-12)
-        assert float(b.fn[0]) == 0.0 and float(b.fs[0]) == 0.0 and float(b.m[0]) == 0.0
-    assert int(st.step) == 5
-
-
-def test_intact_bond_records_loads_in_step():
-    """An intact bond compressed by 1e-4: recorded F̄_n = −k̄_n A 1e-4 and the contact adds
-    k_n δ: acceleration (k̄_n A + k_n) δ/m."""
-    sc = _pair_scene()
-    phys = Physics.for_scene(sc, x64=True)
-    p = sc.params.as_arrays(jnp.float64)
-    st = integrate.init_state(sc, phys, p)
-    s = st.solid
-    st = st.replace(solid=s.replace(x=s.x.at[1, 0].add(-1e-4)))
-    st = jax.jit(integrate.step, static_argnums=0)(phys, st, p)
-    assert bool(st.bonds.intact[0]) and int(st.bonds.mode[0]) == 0
-    assert float(st.bonds.t_break[0]) == -1.0
-    assert float(st.bonds.fn[0]) == pytest.approx(-KN * AREA * 1e-4, rel=1e-9)
-    m = float(sc.solid.mass[1])
-    assert float(st.solid.acc[1, 0]) == pytest.approx((KN * AREA + 1.0e7) * 1e-4 / m, rel=1e-9)
-
-
-# --- gradients -----------------------------------------------------------------------------
+# --- gradient ------------------------------------------------------------------------------
 def test_grad_of_bond_force_wrt_kn():
     x0 = np.array([[0.1, 0.2], [0.1 + D0, 0.2]])
     d0, e0 = bonds.rest_geometry(F(x0), jnp.asarray([0]), jnp.asarray([1]))
@@ -416,47 +326,3 @@ def test_grad_of_bond_force_wrt_kn():
     fd = (float(fx(KN + h)) - float(fx(KN - h))) / (2 * h)
     assert g == pytest.approx(fd, rel=1e-8)
     assert g == pytest.approx(-AREA * 1e-5, rel=1e-3)     # ∂(−F̄_n n_x)/∂k̄_n ≈ −A u
-
-
-def _bar_scene():
-    """Three discs (R = 0.45 d, so no contacts) bonded in a row, disc 0 clamped, an oblique
-    load on the tip, no damping."""
-    d = 0.01
-    x = np.stack([0.02 + d * np.arange(3), np.full(3, 0.05)], axis=1)
-    f_ext = np.zeros((3, 2))
-    f_ext[2] = [30.0, -20.0]
-    blk = disc_block(x, 0.45 * d, 2700.0, fixed=np.array([True, False, False]), f_ext=f_ext)
-    return Scene(name="bar", params=Params(
-        gravity=(0.0, 0.0), dt=1e-6, dem=DemParams(kn=1.0e6, ks=0.0, mu=0.0),
-        bond=BondParams(kn=KN, ks=KS)),
-        domain_lo=(0.0, 0.0), domain_hi=(0.1, 0.1), v_max=1.0, solid=blk,
-        bonds=BondBlock(i=np.array([0, 1], np.int32), j=np.array([1, 2], np.int32))).validate()
-
-
-def test_grad_of_rollout_tip_displacement_wrt_bond_kn():
-    sc = _bar_scene()
-    phys = Physics.for_scene(sc, x64=True)
-    p = sc.params.replace(dt=0.25 * integrate.dem_dt(sc, sc.params)).as_arrays(jnp.float64)
-    st = integrate.init_state(sc, phys, p)
-    y0 = float(st.solid.x[2, 1])
-
-    @jax.jit
-    def tip(kn):
-        q = p.replace(bond=p.bond.replace(kn=kn))
-        end, _ = integrate.rollout(phys, st, q, 150)
-        return end.solid.x[2, 1] - y0
-
-    kn = jnp.asarray(KN)
-    g = float(jax.grad(tip)(kn))
-    h = 1e-4 * KN
-    fd = (float(tip(kn + h)) - float(tip(kn - h))) / (2 * h)
-    assert abs(float(tip(kn))) > 1e-7                       # the tip moved
-    assert g != 0.0
-    assert g == pytest.approx(fd, rel=1e-5)
-
-
-def test_bonded_scene_compiles_bonds(step_hlo):
-    _, scopes, files = step_hlo(scenes.build("bond_tension", n_discs=3), jnp.float64)
-    assert {"bonds", "dem.contacts"} <= scopes
-    assert "bonds.py" in files and "sph.py" not in files
-    assert not [s for s in scopes if s.startswith("sph.")]

@@ -1,13 +1,15 @@
-"""Fluid–particle closure laws (fpi.py) against hand-computed values, the reaction law and a
-gradient check."""
+"""Fluid–particle closure laws (fpsi_jax.physics.fpi) against hand-computed values, the
+reaction laws and a gradient check. The coupling inside the step is tested in
+tests/solver/test_stages.py and tests/solver/test_forward.py."""
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from fpsi_jax import fpi, kernels
+from fpsi_jax.physics import fpi, kernels
 
 pytestmark = pytest.mark.usefixtures("float64")
+
 
 RHO, MU, D = 1000.0, 1e-3, 2.5e-3
 
@@ -143,67 +145,6 @@ def test_reaction_sums_to_minus_the_grain_force():
     np.testing.assert_allclose(np.asarray(out.sum(0)), -np.asarray(force.sum(0)), atol=1e-14)
 
 
-def test_drag_gradient_wrt_viscosity_matches_finite_differences():
-    eps = jnp.asarray([0.7, 0.9])
-    u = jnp.asarray([[0.1, 0.0], [0.0, 0.05]])
-    v = jnp.zeros((2, 2))
-    vol = jnp.full(2, 5e-6)
-
-    def total(mu):
-        return jnp.sum(fpi.drag_force(eps, u, v, vol, RHO, D, mu))
-
-    g = float(jax.grad(total)(MU))
-    e = 1e-8
-    fd = (float(total(MU + e)) - float(total(MU - e))) / (2 * e)
-    np.testing.assert_allclose(g, fd, rtol=1e-6)
-
-
-# --- the coupling in the step -----------------------------------------------------------------
-def _grain_scene(**kw):
-    from fpsi_jax import scenes
-    base = dict(width=0.012, height=0.012, d=0.0025, y0=0.006, x0=0.006, dx=0.0015,
-                h0=0.003, rho_grain=1000.0, x64=True, t_end=0.01)
-    return scenes.build("sedimentation", **{**base, **kw})
-
-
-def _init(scene, **opts):
-    from fpsi_jax import integrate
-    from fpsi_jax.simulate import setup
-    phys, params = setup(scene, **opts)
-    p = params.as_arrays(jnp.float64)
-    return phys, p, integrate.init_state(scene, phys, p)
-
-
-def test_still_water_beside_a_grain_is_in_balance():
-    """Fluid among grains gets mass ε ρ0 Δx² (builder) and the pressure bracket
-    (P_i + P_j)/(ε_iρ_i ε_jρ_j): a fluid particle next to a grain of the fluid's density starts
-    in balance, and so does the grain (buoyancy = weight)."""
-    scene = _grain_scene(width=0.02, height=0.03, x0=0.01, y0=0.015)
-    phys, p, st = _init(scene)
-    x, a = np.asarray(st.fluid.x), np.asarray(st.fluid.acc)
-    near = np.linalg.norm(x - [0.01, 0.015], axis=1) < 0.006
-    assert near.sum() > 20 and float(np.asarray(st.fpi.eps).min()) < 0.75   # a real well
-    assert np.abs(a[near]).max() < 0.02 * 9.81
-    weight = float(scene.solid.mass[0]) * 9.81
-    assert float(st.fpi.force[0, 1]) == pytest.approx(weight, rel=1e-9)      # Archimedes
-
-
-def test_grain_forces_and_their_reaction_sum_to_zero():
-    """Σ_p F_p + Σ_f m_f a_f(reaction) = 0 to round-off in the stepped state (W47–W48)."""
-    from fpsi_jax import integrate
-    scene = _grain_scene(rho_grain=2500.0)
-    phys, p, st = _init(scene)
-    st = jax.jit(lambda s: integrate.rollout(phys, s, p, 30)[0])(st)
-    f = st.fluid
-    n_sph = st.nbrs.idx.shape[0] - 1
-    rows = fpi.grain_rows(kernels.get(phys.kernel), f.x, f.h, f.mass / (st.fpi.eps * f.rho),
-                          st.solid.x[st.fpi.idx], st.nbrs.idx[n_sph:], phys.n_fluid)
-    reaction = f.mass[:, None] * fpi.reaction_acceleration(rows, st.fpi.force, f.mass)
-    total = np.asarray(reaction.sum(0) + st.fpi.force.sum(0))
-    assert float(jnp.abs(st.fpi.force).max()) > 1e-3
-    np.testing.assert_allclose(total, 0.0, atol=1e-14 * float(jnp.abs(st.fpi.force).sum()))
-
-
 def test_lubrication_on_discs_obeys_newtons_third_law():
     rng = np.random.default_rng(5)
     n = 12
@@ -218,31 +159,16 @@ def test_lubrication_on_discs_obeys_newtons_third_law():
     assert np.all(np.asarray(f)[~np.asarray(wet)] == 0.0)        # dry grains: no lubrication
 
 
-def test_fpi_is_compiled_only_with_grains(step_hlo, tiny_tank):
-    _, scopes, _ = step_hlo(_grain_scene(), jnp.float64)
-    assert {"fpi.voidage", "fpi.drag", "fpi.buoyancy", "fpi.reaction", "fpi.lubrication"} <= scopes
-    _, scopes, _ = step_hlo(_grain_scene(), jnp.float64, lubrication=False)
-    assert "fpi.lubrication" not in scopes
-    _, scopes, files = step_hlo(tiny_tank)
-    assert not [s for s in scopes if s.startswith("fpi")] and "fpi.py" not in files
+def test_drag_gradient_wrt_viscosity_matches_finite_differences():
+    eps = jnp.asarray([0.7, 0.9])
+    u = jnp.asarray([[0.1, 0.0], [0.0, 0.05]])
+    v = jnp.zeros((2, 2))
+    vol = jnp.full(2, 5e-6)
 
+    def total(mu):
+        return jnp.sum(fpi.drag_force(eps, u, v, vol, RHO, D, mu))
 
-def test_grain_velocity_gradient_wrt_viscosity_matches_finite_differences():
-    """d v_p(t) / d μ through 60 coupled steps (SPH, DEM, drag, voidage) vs a central
-    difference."""
-    from fpsi_jax import integrate
-    scene = _grain_scene(rho_grain=2500.0)
-    phys, p, st = _init(scene)
-
-    @jax.jit
-    def vy(mu):
-        q = p.replace(sph=p.sph.replace(mu=mu))
-        end, _ = integrate.rollout(phys, st, q, 60)
-        return end.solid.v[0, 1]
-
-    mu = jnp.asarray(0.01)
-    g = float(jax.grad(vy)(mu))
-    h = 1e-5
-    fd = (float(vy(mu + h)) - float(vy(mu - h))) / (2 * h)
-    assert g != 0.0
-    assert g == pytest.approx(fd, rel=1e-4)
+    g = float(jax.grad(total)(MU))
+    e = 1e-8
+    fd = (float(total(MU + e)) - float(total(MU - e))) / (2 * e)
+    np.testing.assert_allclose(g, fd, rtol=1e-6)

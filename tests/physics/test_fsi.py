@@ -1,19 +1,21 @@
-"""Fluid–structure coupling (fsi.py, integrate's multi-rate step): hand-computed two- and
-three-particle values for each method, the reaction law on a random configuration, the
-derived sub-steps, and a gradient check."""
-import types
-
+"""Fluid–structure coupling (fpsi_jax.physics.fsi, and the extrapolated wall pressure of
+physics.boundary on the structure): hand-computed two- and three-particle values for each
+method, read off the SPH evaluation the step runs (solver.stages.evaluate_fluid), the
+reaction law on a random configuration, and a gradient check."""
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from fpsi_jax import fsi, integrate, kernels, sph
-from fpsi_jax.params import ParameterError, Params, SphParams
-from fpsi_jax.scene import NeighborConfig, Physics
-from fpsi_jax.state import FsiState
+from fpsi_jax.model.config import NeighborConfig, Physics
+from fpsi_jax.model.options import FsiMethod
+from fpsi_jax.model.params import Params, SphParams
+from fpsi_jax.model.state import FluidState, FsiState, SolidState, State, Status
+from fpsi_jax.physics import eos, fsi, kernels, pairs, sph
+from fpsi_jax.solver import stages
 
 pytestmark = pytest.mark.usefixtures("float64")
+
 
 KERN = kernels.get("wendland")
 H = 0.01
@@ -32,8 +34,8 @@ def _sp(mu=0.0, **kw):
 
 def _phys(nf, ns, method, **flags):
     nb = NeighborConfig(r_cut=2 * H, skin=0.0, origin=(-1.0, -1.0), box=(2.0, 2.0))
-    return Physics(n_fluid=nf, n_boundary=0, neighbors=nb, fsi=method, n_structure=ns,
-                   **{**OFF, **flags})
+    return Physics(n_fluid=nf, n_boundary=0, neighbors=nb, fsi=FsiMethod(method),
+                   n_structure=ns, **{**OFF, **flags})
 
 
 def _dense(x, r_cut):
@@ -45,8 +47,32 @@ def _dense(x, r_cut):
     return jnp.asarray([r + [n] * (k - len(r)) for r in rows])
 
 
+def _state(xf, vf, rhof, m_f, xs, vs, acc_s, fs, idx):
+    """A State with the fluid rows and the structure discs (one per structure particle) that
+    evaluate_fluid reads; the disc quantities it does not read are zero."""
+    nf, ns = xf.shape[0], xs.shape[0]
+    z = jnp.zeros_like
+    fluid = FluidState(x=xf, v=vf, rho=rhof, h=jnp.full(nf, H), mass=m_f, acc=z(xf),
+                       xsph=z(xf))
+    zs = jnp.zeros(ns)
+    solid = SolidState(x=xs, v=vs, omega=zs, theta=zs, acc=acc_s, alpha=zs, radius=zs,
+                       mass=zs, inertia=zs, fixed=jnp.zeros(ns, bool), f_ext=z(xs),
+                       shear=jnp.zeros((ns, 1)), wall_shear=jnp.zeros((ns, 0)))
+    return State(t=jnp.zeros(()), step=jnp.zeros((), jnp.int32), fluid=fluid, boundary=None,
+                 nbrs=Neighbours(idx), status=Status.ok(), solid=solid, fsi=fs)
+
+
+class Neighbours:
+    """The one field of a neighbour list that evaluate_fluid reads."""
+
+    def __init__(self, idx):
+        self.idx = idx
+
+
 def _evaluate(method, xf, vf, rhof, xs, vs, acc_s=None, mu=0.0, flags=None, sp=None,
               p_s=None, rho_s=None):
+    """stages.evaluate_fluid with Δt = 0 (no drift): (ρ, h, a, δv_XSPH, boundary, FsiState),
+    the fluid masses and the FsiState it started from."""
     nf, ns = xf.shape[0], xs.shape[0]
     phys = _phys(nf, ns, method, **(flags or {}))
     params = Params(gravity=G, sph=sp or _sp(mu)).as_arrays(jnp.float64)
@@ -54,20 +80,22 @@ def _evaluate(method, xf, vf, rhof, xs, vs, acc_s=None, mu=0.0, flags=None, sp=N
     fs = FsiState(idx=jnp.arange(ns), mass=jnp.full(ns, RHO0 * 0.006 ** 2),
                   h=jnp.full(ns, H), rho=jnp.full(ns, RHO0) if rho_s is None else rho_s,
                   p=jnp.zeros(ns) if p_s is None else p_s, force=jnp.zeros((ns, 2)))
-    nbrs = types.SimpleNamespace(idx=_dense(np.concatenate([xf, xs]), 2 * H))
+    idx = _dense(np.concatenate([xf, xs]), 2 * H)
     acc_s = jnp.zeros_like(jnp.asarray(xs)) if acc_s is None else acc_s
 
     @jax.jit          # one compiled program instead of ~100 eagerly dispatched primitives
     def update(params, xf, vf, rhof, xs, vs, acc_s, fs):
-        return integrate.fluid_update(phys, params, xf, vf, rhof, jnp.full(nf, H), m_f, None,
-                                      nbrs, 0.0, (xs, vs, acc_s, fs))[:6]
+        new = stages.evaluate_fluid(phys, params,
+                                    _state(xf, vf, rhof, m_f, xs, vs, acc_s, fs, idx), 0.0)
+        f = new.fluid
+        return f.rho, f.h, f.acc, f.xsph, new.boundary, new.fsi
 
     out = update(params, *(jnp.asarray(a) for a in (xf, vf, rhof, xs, vs)), acc_s, fs)
     return out, m_f, fs
 
 
 def _p(rho):
-    return float(sph.eos_pressure(rho, RHO0, C0, GAMMA))
+    return float(eos.pressure(rho, RHO0, C0, GAMMA))
 
 
 # --- hand-computed pair values -------------------------------------------------------------
@@ -111,7 +139,7 @@ def test_pressure_approximation_matches_K41():
                for k in range(2))
     np.testing.assert_allclose(float(fs.p[0]), want, rtol=1e-12)
     np.testing.assert_allclose(float(fs.rho[0]),
-                               float(sph.eos_density(want, RHO0, C0, GAMMA)), rtol=1e-12)
+                               float(eos.density(want, RHO0, C0, GAMMA)), rtol=1e-12)
 
 
 def test_extrapolated_adds_the_hydrostatic_and_acceleration_terms():
@@ -141,14 +169,15 @@ def test_structure_velocity_enters_continuity_and_viscosity():
     # the density rate: K32 with v_FS = v_F − v_S
     x = jnp.asarray(np.concatenate([xf, xs]))
     v = jnp.asarray([[0.0, 0.0], [0.3, 0.2]])
-    pr = sph.pairs(KERN, 1, x, v, jnp.full(2, H), jnp.full(2, 0.064), jnp.full(2, RHO0),
-                   jnp.asarray([[1]]))
+    pr = pairs.pairs(KERN, 1, x, v, jnp.full(2, H), jnp.full(2, 0.064), jnp.full(2, RHO0),
+                     jnp.asarray([[1]]))
     dx = xf[0] - xs[0]
     want = RHO0 * 0.064 / RHO0 * (np.array([-0.3, -0.2]) @ dx) * float(
         KERN.grad_factor(dx @ dx, H))
     np.testing.assert_allclose(float(sph.continuity(jnp.asarray([RHO0]), pr)[0]), want,
                                rtol=1e-12)
     assert want > 0                                       # approaching: compresses
+
 
 # --- reaction law --------------------------------------------------------------------------
 def _random(seed=0, nf=40, ns=25):
@@ -162,7 +191,7 @@ def _random(seed=0, nf=40, ns=25):
     return xf, vf, rho, xs, vs
 
 
-@pytest.mark.parametrize("method", fsi.METHODS)
+@pytest.mark.parametrize("method", list(FsiMethod))
 def test_force_on_structure_is_the_exact_reaction(method):
     """Σ_F m_F (a_F − g) + Σ_S F_S = 0 to round-off: the fluid–fluid pairs cancel by
     antisymmetry, the fluid–structure ones by construction (every term on)."""
@@ -201,85 +230,3 @@ def test_gradient_of_structure_force_matches_finite_differences():
         fd = (float(total(20.0 + e, method)) - float(total(20.0 - e, method))) / (2 * e)
         assert abs(g) > 0
         np.testing.assert_allclose(g, fd, rtol=1e-6)
-
-
-# --- scenes, sub-steps, compiled program --------------------------------------------------
-def _coarse_plate(**kw):
-    from fpsi_jax import scenes
-    return scenes.build("hydrostatic_plate", dx=0.0035, d=0.0025, dx_boundary=0.0025, **kw)
-
-
-def test_substeps_are_derived_from_the_two_bounds_and_checked():
-    from fpsi_jax.simulate import setup
-    sc = _coarse_plate()
-    phys, params = setup(sc)
-    sph_b = integrate.sph_dt(sc, sc.params)
-    dem_b = integrate.dem_dt(sc, sc.params)
-    assert params.dt == pytest.approx(sph_b)
-    assert phys.dem_substeps == int(np.ceil(sph_b / dem_b)) > 1
-    assert params.dt / phys.dem_substeps <= dem_b
-    phys1, p1 = setup(sc, dem_substeps=1)              # single rate: the smaller bound
-    assert phys1.dem_substeps == 1 and p1.dt == pytest.approx(dem_b)
-    with pytest.raises(ParameterError, match="dem_substeps = 2"):
-        setup(sc, dt=sph_b, dem_substeps=2)
-    with pytest.raises(ParameterError, match="dem_substeps"):
-        setup(sc, dem_substeps=0)
-
-
-def test_a_bad_coupled_step_is_told_the_range_it_may_use():
-    """With the sub-steps chosen from dt, a step that is not positive is told the SPH bound
-    (the DEM sub-step bound does not limit it), and that bound is accepted; with the
-    sub-steps fixed, the DEM bound × their count."""
-    from fpsi_jax.simulate import setup
-    sc = _coarse_plate()
-    sph_b = integrate.sph_dt(sc, sc.params)
-    with pytest.raises(ParameterError, match=rf"allowed \(0, {sph_b:.4g}\] s \(the DEM sub-steps"):
-        setup(sc, dt=-1.0)
-    assert setup(sc, dt=sph_b)[1].dt == pytest.approx(sph_b)
-    dem_b = integrate.dem_dt(sc, sc.params)
-    with pytest.raises(ParameterError, match=rf"allowed \(0, {2 * dem_b:.4g}\] s$"):
-        setup(sc, dt=0.0, dem_substeps=2)
-
-
-def test_substeps_equal_small_single_steps_of_the_discs():
-    """n DEM sub-steps of Δt/n inside one step = n DEM steps of Δt/n (fluid force held)."""
-    from fpsi_jax.simulate import setup
-    sc = _coarse_plate()
-    phys, params = setup(sc, x64=True)
-    p = params.as_arrays(jnp.float64)
-    st = integrate.init_state(sc, phys, p)
-    n = phys.dem_substeps
-    solid, bonds, *_ = jax.jit(integrate._solid_substeps, static_argnums=0)(phys, st, p)
-    s, b, nb = st.solid, st.bonds, st.solid_nbrs
-    f = integrate.fluid_force_on_discs(phys, st)
-    assert float(jnp.abs(f).sum()) > 0
-    one = jax.jit(integrate._solid_step, static_argnums=0)
-    for k in range(n):
-        s, b, nb, _ = one(phys, p, s, b, nb, st.walls, st.t + (k + 1) * p.dt / n, p.dt / n, f)
-    np.testing.assert_allclose(np.asarray(solid.x), np.asarray(s.x), rtol=0, atol=1e-15)
-
-
-def test_coupled_step_compiles_the_coupling_and_fluid_only_does_not(step_hlo, tiny_tank):
-    _, scopes, _ = step_hlo(_coarse_plate(), jnp.float64, x64=True)
-    assert {"fsi.extrapolated", "fsi.reaction", "integrate.dem_substeps"} <= scopes
-    _, scopes, _ = step_hlo(tiny_tank)
-    assert not any(s.startswith("fsi.") for s in scopes)
-
-
-def test_bad_coupling_is_refused_before_compiling():
-    with pytest.raises(ParameterError, match="coupling must be one of"):
-        _coarse_plate(coupling="glue")
-    from fpsi_jax import scenes
-    with pytest.raises(ParameterError, match="gap"):
-        scenes.build("elastic_gate", gap=-0.001)
-    with pytest.raises(ParameterError, match="fsi"):
-        Physics.for_scene(_coarse_plate(), fsi="glue")
-
-
-def test_multirate_step_hlo_shows_the_dem_substep_mechanisms(step_hlo):
-    """In a coupled scene the DEM forces sit inside the sub-step loop, whose op locations
-    are relative ("bonds/..."): the HLO fixture must see them, or an absence test on a
-    coupled scene would pass whether the mechanism is compiled or not."""
-    _, scopes, _ = step_hlo(_coarse_plate())
-    assert {"dem.contacts", "bonds", "integrate.dem_substeps", "fsi.extrapolated"} <= scopes
-    assert "dem.walls" not in scopes                 # the plate has no DEM walls

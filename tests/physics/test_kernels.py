@@ -1,4 +1,4 @@
-"""Unit tests of the 2D SPH kernels (fpsi_jax.kernels; physics.md §SPH, K28/W41).
+"""Unit tests of the 2D SPH kernels (fpsi_jax.physics.kernels; physics.md §SPH, K28/W41).
 
 Every kernel is checked against its closed form and its defining properties: value at
 q = 0, compact support 2h, ∫W dA = 1 in 2D, dW/dr consistent with W, and the gradient
@@ -11,7 +11,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from fpsi_jax import kernels
+from fpsi_jax.model.errors import ParameterError
+from fpsi_jax.model.options import KernelKind
+from fpsi_jax.physics import kernels
 
 
 pytestmark = pytest.mark.usefixtures("float64")  # conftest: x64 for this module only
@@ -44,7 +46,9 @@ REF = {"wendland": wendland_ref, "cubic": cubic_ref}
 def test_get_known_and_unknown():
     assert kernels.get("wendland").name == "wendland"
     assert kernels.get("cubic").name == "cubic"
-    with pytest.raises(ValueError, match="kernel must be one of"):
+    assert kernels.get(KernelKind.WENDLAND).name == "wendland"
+    with pytest.raises(ParameterError, match="kernel = 'gaussian' is not a choice; allowed: "
+                                             "wendland, cubic"):
         kernels.get("gaussian")
 
 

@@ -1,4 +1,5 @@
-"""HDF5 + XDMF output: round trip, metadata, and a sidecar ParaView can parse."""
+"""HDF5 + XDMF output (fpsi_jax.run.io): round trip, metadata, and a sidecar ParaView can
+parse."""
 import json
 import os
 import xml.etree.ElementTree as ET
@@ -6,8 +7,8 @@ import xml.etree.ElementTree as ET
 import h5py
 import numpy as np
 
-from fpsi_jax import io
-from fpsi_jax.simulate import simulate
+from fpsi_jax.run import io
+from fpsi_jax.run.simulate import simulate
 
 
 def test_round_trip_and_metadata(tmp_path, tiny_tank):

@@ -1,17 +1,24 @@
-"""Host driver: unstable runs stop with a diagnosis and leave a valid, finite file."""
+"""The host driver (fpsi_jax.run.simulate): unstable runs stop with a diagnosis and leave a
+valid, finite file; frames and speed; dt overrides; an overflowing neighbour list is regrown
+and its chunk redone; the last short chunk and a second run reuse the compiled program."""
 import h5py
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from fpsi_jax import io, scenes
-from fpsi_jax.simulate import SimulationError, simulate
+from fpsi_jax import cases
+from fpsi_jax.cases import overrides
+from fpsi_jax.model.errors import ParameterError, SimulationError
+from fpsi_jax.run import io
+from fpsi_jax.run.simulate import _advance, setup, simulate
+from fpsi_jax.solver import forward, init
 
 
 def test_unstable_run_stops_with_diagnosis_and_keeps_good_frames(tmp_path):
     # c0 = 3 m/s is far below 10 v_max (24 m/s): the column compresses until the density leaves
     # the allowed band -- a deliberately unstable run.
-    sc = scenes.build("dam_break", dx=0.02, c0=3.0, t_end=0.5)
+    sc = cases.build("dam_break", dx=0.02, c0=3.0, t_end=0.5)
     out = tmp_path / "bad.h5"
     with pytest.raises(SimulationError) as info:
         simulate(sc, output=str(out), every=0.02, progress=False)
@@ -45,9 +52,6 @@ def test_simulate_writes_frames_and_reports_speed(tmp_path, tiny_tank):
 def test_dt_override_is_honoured_and_checked():
     """``--set dt=…`` (overrides.build) sets the step the run uses; above the bound it is
     refused; simulate's own dt argument wins over it."""
-    from fpsi_jax import overrides
-    from fpsi_jax.params import ParameterError
-    from fpsi_jax.simulate import setup
     sc, ph = overrides.build("hydrostatic_tank", {"dt": 1e-5, "dx": 0.02})
     assert float(setup(sc, **ph)[1].dt) == pytest.approx(1e-5)
     assert float(setup(sc, 2e-5, **ph)[1].dt) == pytest.approx(2e-5)
@@ -58,25 +62,59 @@ def test_dt_override_is_honoured_and_checked():
         overrides.build("hydrostatic_tank", {"dt": -1})
 
 
+# --- neighbour-list overflow: regrow and redo --------------------------------------------
+def squeezed_block():
+    """A free block of water (no walls, no gravity) whose particles converge on its centre:
+    the neighbour count per particle roughly doubles within the run."""
+    sc = cases.build("hydrostatic_tank", dx=0.01, depth=0.1, width=0.1, t_end=0.02)
+    sc.boundary = None
+    sc.params = sc.params.replace(gravity=(0.0, 0.0))
+    c = sc.fluid.x.mean(axis=0)
+    sc.fluid.v = -12.0 * (sc.fluid.x - c)
+    sc.fluid.rho = np.full(sc.fluid.n, 1000.0)
+    return sc
+
+
+def test_overflow_is_redone_and_equals_a_large_allocation():
+    # a thin skin (0.1 h), so the compression outgrows the list within the 24 steps
+    tight = simulate(squeezed_block(), progress=False, capacity_multiplier=1.0,
+                     chunk_steps=20, rho_tolerance=0.9, skin=0.1)
+    roomy = simulate(squeezed_block(), progress=False, capacity_multiplier=4.0,
+                     chunk_steps=20, rho_tolerance=0.9, skin=0.1)
+    assert tight.reallocations >= 1          # the tight list did overflow ...
+    assert roomy.reallocations == 0
+    assert tight.n_steps == roomy.n_steps
+    # ... and the redone chunks give the same answer as a list that never overflowed
+    np.testing.assert_allclose(np.asarray(tight.state.fluid.x),
+                               np.asarray(roomy.state.fluid.x), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(tight.state.fluid.rho),
+                               np.asarray(roomy.state.fluid.rho), rtol=1e-5)
+
+
+def test_particle_leaving_the_domain_is_a_clear_error(tmp_path):
+    sc = cases.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1, t_end=0.05)
+    top = int(np.argmax(sc.fluid.x[:, 1] + 1e-3 * sc.fluid.x[:, 0]))
+    sc.fluid.v = np.zeros_like(sc.fluid.x)
+    sc.fluid.v[top] = (0.0, 20.0)          # shoots out of the open top of the domain
+    with pytest.raises(SimulationError,
+                       match=f"fluid particle {top}: particle left the domain"):
+        simulate(sc, progress=False, output=str(tmp_path / "out.h5"), rho_tolerance=0.9)
+
+
+# --- compiled chunks ---------------------------------------------------------------------
 def test_last_short_chunk_reuses_the_compiled_chunk_and_equals_a_rollout(tiny_tank):
-    """The driver's chunks run through integrate.advance with a traced step count: a tail
+    """The driver's chunks run through forward.advance with a traced step count: a tail
     shorter than a chunk takes the same program (one compile) and the same steps as a plain
     scan rollout, observations included."""
-    import jax
-    import jax.numpy as jnp
-
-    from fpsi_jax import integrate
-    from fpsi_jax.simulate import _advance, setup
-
     phys, params = setup(tiny_tank)
     p = params.as_arrays(jnp.float32)
-    st = integrate.init_state(tiny_tank, phys, p)
+    st = init.init_state(tiny_tank, phys, p)
     obs = lambda s: jnp.max(s.fluid.x[:, 1])
     n_before = _advance._cache_size()
     full, o_full = _advance(phys, st, p, jnp.int32(7), 7, obs)
     tail, o_tail = _advance(phys, st, p, jnp.int32(4), 7, obs)
     assert _advance._cache_size() == n_before + 1
-    ref, o_ref = jax.jit(integrate.rollout, static_argnums=(0, 3, 4))(phys, st, p, 4, obs)
+    ref, o_ref = jax.jit(forward.rollout, static_argnums=(0, 3, 4))(phys, st, p, 4, obs)
     np.testing.assert_array_equal(np.asarray(tail.fluid.x), np.asarray(ref.fluid.x))
     assert int(tail.step) == 4 and int(full.step) == 7
     np.testing.assert_array_equal(np.asarray(o_tail)[:4], np.asarray(o_ref))
@@ -84,55 +122,12 @@ def test_last_short_chunk_reuses_the_compiled_chunk_and_equals_a_rollout(tiny_ta
     np.testing.assert_array_equal(np.asarray(o_full)[:4], np.asarray(o_ref))
 
 
-@pytest.mark.parametrize("bad_step, overflow, h_exceeded, redo_step, expected", [
-    (-1, True, False, 5, True),     # a plain overflow: regrow and redo
-    (3, False, True, 4, False),     # bad at 3, h outgrew the cut-off at 3 (inexact from 4)
-    (3, True, False, 3, True),      # bad in the very step whose list overflowed: redo
-    (6, True, False, 5, True),      # bad after the overflow: maybe its consequence, redo
-    (3, False, False, -1, False),   # bad, nothing overflowed: diagnose
-])
-def test_a_run_bad_before_its_lists_overflowed_is_diagnosed_not_regrown(
-        bad_step, overflow, h_exceeded, redo_step, expected):
-    import jax.numpy as jnp
-
-    from fpsi_jax.state import Status
-    st = Status.ok().replace(bad=jnp.asarray(bad_step >= 0), step=jnp.int32(bad_step),
-                             overflow=jnp.asarray(overflow),
-                             h_exceeded=jnp.asarray(h_exceeded),
-                             redo_step=jnp.int32(redo_step))
-    assert st.must_redo() is expected
-
-
-def test_redo_step_marks_the_first_inexact_step():
-    """Overflow: that very step dropped pairs; h past the cut-off: the next one would."""
-    import dataclasses
-
-    import jax.numpy as jnp
-
-    from fpsi_jax import integrate
-    from fpsi_jax.simulate import setup
-    sc = scenes.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1)
-    phys, params = setup(sc)
-    p = params.as_arrays(jnp.float32)
-    s0 = integrate.init_state(sc, phys, p)
-    step = jax.jit(integrate.step, static_argnums=0)
-    s1 = step(phys, s0, p)
-    assert int(s1.status.redo_step) == -1
-    # a cut-off that the initial h already exceeds: h_exceeded at step 1, inexact from 2
-    tight = dataclasses.replace(phys, neighbors=dataclasses.replace(
-        phys.neighbors, r_cut=float(sc.fluid.h.max())))
-    s1 = step(tight, s0, p)
-    assert bool(s1.status.h_exceeded) and int(s1.status.redo_step) == 2
-
-
 def test_a_second_run_of_the_same_scene_compiles_nothing(tiny_tank):
     """Fresh neighbour lists of the same capacity are the same pytree to jax.jit: a second
     simulate (a sweep, a calibration, validate) reuses the compiled chunk and set-up."""
-    from fpsi_jax import integrate
-    from fpsi_jax.simulate import _advance
     simulate(tiny_tank, t_end=0.004, every=0.002, progress=False)
-    n_adv, n_init = _advance._cache_size(), integrate._initial_rates._cache_size()
+    n_adv, n_init = _advance._cache_size(), init._initial_rates._cache_size()
     res = simulate(tiny_tank, t_end=0.004, every=0.002, progress=False)
     assert res.n_steps > 0
     assert _advance._cache_size() == n_adv
-    assert integrate._initial_rates._cache_size() == n_init
+    assert init._initial_rates._cache_size() == n_init

@@ -1,6 +1,6 @@
-"""fpsi_jax.stability and the stress cases of issue 7, fast versions (the full sweeps are in
-experiments/stability.py): the derived step is stable, a step far past it stops with the
-driver's diagnosis (never NaNs), a grain hitting a wall at 10 m/s, overlapping starts,
+"""Stability probes (fpsi_jax.run.stability) and stress cases, fast versions (the full sweeps
+are in experiments/stability.py): the derived step is stable, a step far past it stops with
+the driver's diagnosis (never NaNs), a grain hitting a wall at 10 m/s, overlapping starts,
 bonds breaking en masse."""
 from __future__ import annotations
 
@@ -9,13 +9,14 @@ import math
 import numpy as np
 import pytest
 
-from fpsi_jax import scenes, stability
-from fpsi_jax.params import ParameterError
-from fpsi_jax.simulate import SimulationError, setup, simulate
+from fpsi_jax import cases
+from fpsi_jax.model.errors import ParameterError, SimulationError
+from fpsi_jax.run import stability
+from fpsi_jax.run.simulate import setup, simulate
 
 
 def test_step_above_bound_is_refused_unless_unsafe():
-    sc = scenes.build("hydrostatic_tank", dx=0.02)
+    sc = cases.build("hydrostatic_tank", dx=0.02)
     _, p = setup(sc)
     with pytest.raises(ParameterError, match="exceeds the stability bound"):
         setup(sc, 2.0 * float(p.dt))
@@ -24,7 +25,7 @@ def test_step_above_bound_is_refused_unless_unsafe():
 
 
 def test_tank_derived_step_stable_and_far_past_it_stops_with_diagnosis():
-    sc = scenes.build("hydrostatic_tank", dx=0.02)
+    sc = cases.build("hydrostatic_tank", dx=0.02)
     ok = stability.probe(sc, 0.3, 1.0)
     assert ok.stable, ok.reason
     assert ok.max_speed < 0.1 * math.sqrt(9.81 * 0.3)
@@ -34,7 +35,7 @@ def test_tank_derived_step_stable_and_far_past_it_stops_with_diagnosis():
 
 
 def test_dem_derived_step_stable_and_far_past_it_stops():
-    sc = scenes.build("cantilever", d=0.0025, variant="free")
+    sc = cases.build("cantilever", d=0.0025, variant="free")
     rows = stability.sweep(sc, 0.01, (1.0, 12.0), stop_after=1)
     assert rows[0].stable, rows[0].reason
     assert not rows[1].stable
@@ -47,7 +48,7 @@ def test_grain_hits_wall_at_10_m_per_s():
     contact, the O(Δt) error of contact onset and release; the derived step is a stability
     bound, not an accuracy one). At a twentieth of it the restitution is within 1 %
     (measured −0.23 %; −0.93 % at a tenth), the accuracy target of the collision case."""
-    sc = scenes.build("wall_impact", speed=10.0)
+    sc = cases.build("wall_impact", speed=10.0)
     r, m, k = float(sc.solid.radius[0]), float(sc.solid.mass[0]), float(sc.params.dem.kn)
     beta = float(sc.params.dem.beta_n)
     e_ref = math.exp(-math.pi * beta / math.sqrt(1 - beta ** 2))
@@ -63,7 +64,7 @@ def test_grain_hits_wall_at_10_m_per_s():
 
 
 def test_discs_started_overlapping_push_apart_conserving_momentum():
-    sc = scenes.build("collision", radius=0.005, speed=0.01, kn=1.0e5, beta=0.1,
+    sc = cases.build("collision", radius=0.005, speed=0.01, kn=1.0e5, beta=0.1,
                       gap=-0.005, t_end=0.01)
     res = simulate(sc, progress=False)
     v = np.asarray(res.state.solid.v)
@@ -77,7 +78,7 @@ def test_coincident_fluid_particles_run_or_stop_clearly():
     """Two fluid particles started at one point: their pair terms vanish (x_ij = 0), so
     nothing pushes them apart; the run must either go on with finite values and bounded
     density or stop with the driver's diagnosis. It goes on (they stay together)."""
-    sc = scenes.build("dam_break", dx=0.02, t_end=0.05)
+    sc = cases.build("dam_break", dx=0.02, t_end=0.05)
     sc.fluid.x[1] = sc.fluid.x[0]
     try:
         res = simulate(sc, progress=False)
@@ -94,7 +95,7 @@ def test_bonds_breaking_en_masse_stays_finite():
     """1 Pa bond strengths: the free cantilever shatters within 10 ms. Every bond that broke
     has its time and mode recorded, the fragments stay finite; bonds left intact are the ones
     between clamped discs or inside fragments that no longer carry load."""
-    sc = scenes.build("cantilever", d=0.0025, variant="free")
+    sc = cases.build("cantilever", d=0.0025, variant="free")
     sc.params = sc.params.set("bond.sigma_c", 1.0).set("bond.tau_c", 1.0)
     res = simulate(sc, t_end=0.01, progress=False)
     b = res.state.bonds
@@ -113,7 +114,7 @@ def test_oblique_impact_keeps_the_tangential_speed():
     """45°, no friction: the normal velocity bounces with the restitution of the normal
     spring–dashpot (within 1 % at a twentieth of the derived step: −0.23 %), the tangential
     one is kept exactly."""
-    sc = scenes.build("wall_impact", speed=10.0, angle=45.0)
+    sc = cases.build("wall_impact", speed=10.0, angle=45.0)
     beta = float(sc.params.dem.beta_n)
     e_ref = math.exp(-math.pi * beta / math.sqrt(1 - beta ** 2))
     _, p = setup(sc)

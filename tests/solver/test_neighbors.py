@@ -1,52 +1,17 @@
-"""Neighbour lists: overflow → reallocate and redo (no pair dropped), leaving the domain."""
+"""Neighbour lists (fpsi_jax.solver.neighbors): the list rebuild and allocation equal
+jax-md's own, growing adds room, the rebuild happens past half the skin, and jax-md is
+imported only when a list is built. The driver's redo of an overflowed chunk is tested in
+tests/run/test_simulate.py."""
 import numpy as np
 import pytest
 
-from fpsi_jax import neighbors, scenes
-from fpsi_jax.simulate import SimulationError, simulate
-
-
-def squeezed_block():
-    """A free block of water (no walls, no gravity) whose particles converge on its centre:
-    the neighbour count per particle roughly doubles within the run."""
-    sc = scenes.build("hydrostatic_tank", dx=0.01, depth=0.1, width=0.1, t_end=0.02)
-    sc.boundary = None
-    sc.params = sc.params.replace(gravity=(0.0, 0.0))
-    c = sc.fluid.x.mean(axis=0)
-    sc.fluid.v = -12.0 * (sc.fluid.x - c)
-    sc.fluid.rho = np.full(sc.fluid.n, 1000.0)
-    return sc
-
-
-def test_overflow_is_redone_and_equals_a_large_allocation():
-    # a thin skin (0.1 h), so the compression outgrows the list within the 24 steps
-    tight = simulate(squeezed_block(), progress=False, capacity_multiplier=1.0,
-                     chunk_steps=20, rho_tolerance=0.9, skin=0.1)
-    roomy = simulate(squeezed_block(), progress=False, capacity_multiplier=4.0,
-                     chunk_steps=20, rho_tolerance=0.9, skin=0.1)
-    assert tight.reallocations >= 1          # the tight list did overflow ...
-    assert roomy.reallocations == 0
-    assert tight.n_steps == roomy.n_steps
-    # ... and the redone chunks give the same answer as a list that never overflowed
-    np.testing.assert_allclose(np.asarray(tight.state.fluid.x),
-                               np.asarray(roomy.state.fluid.x), rtol=0, atol=1e-6)
-    np.testing.assert_allclose(np.asarray(tight.state.fluid.rho),
-                               np.asarray(roomy.state.fluid.rho), rtol=1e-5)
-
-
-def test_particle_leaving_the_domain_is_a_clear_error(tmp_path):
-    sc = scenes.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1, t_end=0.05)
-    top = int(np.argmax(sc.fluid.x[:, 1] + 1e-3 * sc.fluid.x[:, 0]))
-    sc.fluid.v = np.zeros_like(sc.fluid.x)
-    sc.fluid.v[top] = (0.0, 20.0)          # shoots out of the open top of the domain
-    with pytest.raises(SimulationError,
-                       match=f"fluid particle {top}: particle left the domain"):
-        simulate(sc, progress=False, output=str(tmp_path / "out.h5"), rho_tolerance=0.9)
+from fpsi_jax import cases
+from fpsi_jax.model.config import Physics
+from fpsi_jax.solver import neighbors
 
 
 def test_grow_adds_room():
-    sc = scenes.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1)
-    from fpsi_jax.scene import Physics
+    sc = cases.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1)
     import jax.numpy as jnp
     phys = Physics.for_scene(sc)
     x = jnp.concatenate([jnp.asarray(sc.fluid.x), jnp.asarray(sc.boundary.x)])
@@ -58,8 +23,7 @@ def test_grow_adds_room():
 
 def _dam_break_list():
     import jax.numpy as jnp
-    from fpsi_jax.scene import Physics
-    sc = scenes.build("dam_break", dx=0.01)
+    sc = cases.build("dam_break", dx=0.01)
     cfg = Physics.for_scene(sc).neighbors
     x = jnp.asarray(np.concatenate([sc.fluid.x, sc.boundary.x]), jnp.float32)
     return cfg, neighbors.shift(cfg, x), neighbors.allocate(cfg, x)
@@ -115,8 +79,7 @@ def test_update_without_a_cell_list_uses_jax_md():
     back to jax-md's own and still rebuilds past half the skin."""
     import warnings
     import jax.numpy as jnp
-    from fpsi_jax.scene import Physics
-    sc = scenes.build("hydrostatic_tank", dx=0.02, depth=0.06, width=0.06)
+    sc = cases.build("hydrostatic_tank", dx=0.02, depth=0.06, width=0.06)
     import dataclasses
     cfg = dataclasses.replace(Physics.for_scene(sc).neighbors, skin=0.06)  # 3 cut-offs > box
     x = jnp.asarray(np.concatenate([sc.fluid.x, sc.boundary.x]), jnp.float32)
@@ -137,7 +100,7 @@ def test_running_count_equals_cumsum_exactly():
     import jax.numpy as jnp
     import numpy as np
 
-    from fpsi_jax.neighbors import _running_count
+    from fpsi_jax.solver.neighbors import _running_count
     rng = np.random.default_rng(3)
     for frac in (0.0, 0.2, 0.7, 1.0):
         valid = jnp.asarray(rng.random((50, 9 * 20)) < frac)
@@ -170,8 +133,7 @@ def _check_allocate_equals_jax_md(scene, kw, extra):
     import dataclasses
 
     import jax.numpy as jnp
-    from fpsi_jax.scene import Physics
-    sc = scenes.build(scene, **kw)
+    sc = cases.build(scene, **kw)
     phys = Physics.for_scene(sc)
     fams = [(phys.neighbors, np.concatenate([sc.fluid.x, sc.boundary.x]
                                             + ([] if sc.solid is None else [sc.solid.x])))]
@@ -199,10 +161,10 @@ def test_jax_md_is_not_imported_before_a_list_is_built():
     import sys
     code = (
         "import sys\n"
-        "from fpsi_jax import scenes\n"
-        "from fpsi_jax.params import ParameterError\n"
-        "from fpsi_jax.simulate import setup\n"
-        "sc = scenes.build('hydrostatic_tank', dx=0.02, depth=0.1, width=0.1)\n"
+        "from fpsi_jax import cases\n"
+        "from fpsi_jax.model.errors import ParameterError\n"
+        "from fpsi_jax.run.simulate import setup\n"
+        "sc = cases.build('hydrostatic_tank', dx=0.02, depth=0.1, width=0.1)\n"
         "try:\n"
         "    setup(sc, dt=-1.0)\n"
         "    raise SystemExit('dt = -1 was accepted')\n"
@@ -211,5 +173,4 @@ def test_jax_md_is_not_imported_before_a_list_is_built():
         "assert 'jax_md' not in sys.modules, 'jax_md imported before any list'\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr[-2000:]
-    from fpsi_jax import neighbors
     assert neighbors.partition.Dense is not None        # the deferred import resolves

@@ -1,0 +1,42 @@
+"""The static configuration (fpsi_jax.model.config): Physics derived from a scene is
+hashable and lists its mechanisms, bad options are refused before anything is compiled, and
+the neighbour skin follows the time step. That switched-off mechanisms are absent from the
+compiled step is tested in tests/solver/test_forward.py."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from fpsi_jax.model.config import Physics
+from fpsi_jax.model.errors import ParameterError
+
+from ..small_scenes import coarse_plate
+
+
+def test_physics_is_hashable_and_lists_mechanisms(tiny_tank):
+    a = Physics.for_scene(tiny_tank)
+    b = Physics.for_scene(tiny_tank)
+    assert hash(a) == hash(b) and a == b
+    assert "sph.continuity" in a.mechanisms()
+    assert "sph.delta" in Physics.for_scene(tiny_tank, delta_sph=True).mechanisms()
+
+
+@pytest.mark.parametrize("opts, word", [
+    ({"kernel": "gauss"}, "kernel"),
+    ({"boundary_pressure": "magic"}, "boundary_pressure"),
+    ({"h_margin": 5.0}, "h_margin"),
+    ({"bogus": 1}, "bogus"),
+])
+def test_bad_physics_options_are_refused(tiny_tank, opts, word):
+    with pytest.raises((ParameterError, ValueError), match=word):
+        Physics.for_scene(tiny_tank, **opts)
+
+
+def test_neighbour_skin_follows_the_step():
+    """0.4 h at the larger step of a scene without a fluid-coupled structure, 0.25 h with
+    one (option fsi), which keeps physics.md's step."""
+    sc = coarse_plate()
+    assert sc.options.get("fsi") is not None
+    bare = dataclasses.replace(sc, options={k: v for k, v in sc.options.items() if k != "fsi"})
+    skin = lambda s: Physics.for_scene(s).neighbors.skin / float(np.max(s.fluid.h))
+    assert skin(sc) == pytest.approx(0.25) and skin(bare) == pytest.approx(0.4)

@@ -1,0 +1,311 @@
+"""The stages of a step (fpsi_jax.solver.stages), each checked on its own: the DEM forces
+(stages.disc_forces: load ramp, gravity, local and viscous damping, walls), the contact
+history across neighbour-list rebuilds in the DEM sub-step, bonds breaking inside the step,
+the multi-rate sub-steps, the SPH evaluation with a grain in still water, and the step
+marking the first inexact step for the host to redo.
+
+The float64 fixture (conftest) is module-scoped, so the one float32 test comes first.
+"""
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from fpsi_jax import cases
+from fpsi_jax.build import disc_block
+from fpsi_jax.model.config import Physics
+from fpsi_jax.model.params import BondParams, DemParams, Params
+from fpsi_jax.model.scene import BondBlock, Scene, WallBlock
+from fpsi_jax.physics import dem
+from fpsi_jax.run.simulate import setup
+from fpsi_jax.solver import forward, init, stages
+
+from ..small_scenes import coarse_plate, grain_scene, init_x64
+
+x64 = pytest.mark.usefixtures("float64")
+
+RTOL = 1e-12
+R = 0.01                                     # disc radius of the DEM scenes
+
+
+def A(*v):
+    """A(1, 2) → array([1., 2.]); A([[..]]) → that array (float64)."""
+    return jnp.asarray(np.array(v[0] if len(v) == 1 else v, float))
+
+
+# --- marking the first inexact step (float32) --------------------------------------------
+def test_redo_step_marks_the_first_inexact_step():
+    """stages.mark_redo: after an overflow that very step dropped pairs; after h outgrew the
+    cut-off the next one would."""
+    sc = cases.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1)
+    phys, params = setup(sc)
+    p = params.as_arrays(jnp.float32)
+    s0 = init.init_state(sc, phys, p)
+    step = jax.jit(forward.step, static_argnums=0)
+    s1 = step(phys, s0, p)
+    assert int(s1.status.redo_step) == -1
+    # a cut-off that the initial h already exceeds: h_exceeded at step 1, inexact from 2
+    tight = dataclasses.replace(phys, neighbors=dataclasses.replace(
+        phys.neighbors, r_cut=float(sc.fluid.h.max())))
+    s1 = step(tight, s0, p)
+    assert bool(s1.status.h_exceeded) and int(s1.status.redo_step) == 2
+
+
+# --- DEM forces (float64) ------------------------------------------------------------------
+def _disc_forces(phys, p, st, v, omega, t, dt):
+    """stages.disc_forces at the state's positions with velocities ``v``, ``ω`` at time
+    ``t``, shear increment ``dt``: the new SolidState."""
+    s = st.solid
+    st = st.replace(t=jnp.asarray(t, s.x.dtype), solid=s.replace(v=A(v), omega=A(omega)))
+    return stages.disc_forces(phys, p, st, dt).solid
+
+
+@x64
+def test_disc_forces_apply_ramp_gravity_and_local_damping():
+    """One free disc, no contacts: a = (f_ext·t/T + m g − α|·|sign(v))/m, α_rot likewise."""
+    blk = disc_block(np.array([[0.05, 0.05]]), R, 2700.0, f_ext=np.array([[3.0, -2.0]]))
+    m = float(blk.mass[0])
+    sc = Scene(name="one", params=Params(gravity=(0.0, -1.0), dt=1e-5,
+                                         dem=DemParams(alpha=0.7, load_ramp=0.5)),
+               domain_lo=(0, 0), domain_hi=(0.1, 0.1), v_max=1.0, solid=blk).validate()
+    phys = Physics.for_scene(sc, x64=True)
+    p = sc.params.as_arrays(jnp.float64)
+    st = init.init_state(sc, phys, p)
+    out = _disc_forces(phys, p, st, [[1.0, 1.0]], [2.0], 0.25, 0.0)
+    acc, alpha = out.acc, out.alpha
+    F = np.array([1.5, -1.0 - m])              # half the load, gravity on y
+    want = (F - 0.7 * np.abs(F) * np.array([1.0, 1.0])) / m
+    np.testing.assert_allclose(np.asarray(acc)[0], want, rtol=RTOL)
+    np.testing.assert_allclose(np.asarray(alpha), 0.0, atol=1e-15)
+    # at t = 0 only gravity, full load after the ramp
+    acc0 = _disc_forces(phys, p, st, [[0.0, 0.0]], [0.0], 0.0, 0.0).acc
+    np.testing.assert_allclose(np.asarray(acc0)[0], [0.0, -1.0], rtol=RTOL)
+    acc1 = _disc_forces(phys, p, st, [[0.0, 0.0]], [0.0], 0.9, 0.0).acc
+    np.testing.assert_allclose(np.asarray(acc1)[0], [3.0 / m, -2.0 / m - 1.0], rtol=RTOL)
+
+
+@x64
+def test_local_damping_on_the_moment():
+    """Torque from a wall contact, damped with sign(ω)."""
+    blk = disc_block(np.array([[0.05, 0.009]]), R, 2700.0)
+    sc = Scene(name="w", params=Params(gravity=(0.0, 0.0), dt=1e-5,
+                                       dem=DemParams(kn=1e5, ks=5e4, mu=0.3, alpha=0.5)),
+               domain_lo=(-0.01, -0.01), domain_hi=(0.11, 0.1), v_max=1.0, solid=blk,
+               walls=WallBlock(a=np.array([[0.0, 0.0]]), b=np.array([[0.1, 0.0]]))).validate()
+    phys = Physics.for_scene(sc, x64=True)
+    p = sc.params.as_arrays(jnp.float64)
+    st = init.init_state(sc, phys, p)
+    out = _disc_forces(phys, p, st, [[0.0, 0.0]], [5.0], 0.0, 1e-4)
+    acc, alpha, wsh = out.acc, out.alpha, out.wall_shear
+    fs = 5.0e4 * 5.0 * 0.0095 * 1e-4
+    np.testing.assert_allclose(np.asarray(wsh)[0, 0], fs, rtol=RTOL)
+    torque = -fs * 0.0095
+    want = (torque - 0.5 * abs(torque) * 1.0) / float(blk.inertia[0])
+    np.testing.assert_allclose(float(alpha[0]), want, rtol=RTOL)
+    # force: x friction −fs (v = 0: undamped), y normal 100 N
+    np.testing.assert_allclose(np.asarray(acc)[0], np.array([-fs, 100.0]) / float(blk.mass[0]),
+                               rtol=RTOL)
+
+
+# --- viscous (mass-proportional) damping ---------------------------------------------------
+@x64
+def test_disc_forces_apply_viscous_damping():
+    """F = −c m v, M = −c J ω on a free disc with no other force."""
+    blk = disc_block(np.array([[0.05, 0.05]]), R, 2700.0)
+    sc = Scene(name="one", params=Params(gravity=(0.0, 0.0), dt=1e-5,
+                                         dem=DemParams(damping=3.0)),
+               domain_lo=(0, 0), domain_hi=(0.1, 0.1), v_max=1.0, solid=blk).validate()
+    phys = Physics.for_scene(sc, x64=True)
+    p = sc.params.as_arrays(jnp.float64)
+    st = init.init_state(sc, phys, p)
+    out = _disc_forces(phys, p, st, [[1.0, -2.0]], [5.0], 0.0, 0.0)
+    acc, alpha = out.acc, out.alpha
+    np.testing.assert_allclose(np.asarray(acc)[0], [-3.0, 6.0], rtol=RTOL)
+    np.testing.assert_allclose(np.asarray(alpha)[0], -15.0, rtol=RTOL)
+
+
+# --- the DEM sub-step: contact history across neighbour-list rebuilds (float64) ----------
+def _press_scene():
+    """A (1) and B (2) pressed together by opposite external forces, B sliding and spinning on
+    A; C (0) passes under A without touching it, entering and leaving A's neighbour row."""
+    x = np.array([[0.1 - 0.5 * R, 0.1 - 2.03 * R], [0.1, 0.1], [0.1, 0.1 + 2 * R - 5e-4]])
+    v = np.array([[1.125, 0.0], [0.0, 0.0], [0.05, 0.0]])
+    blk = disc_block(x, R, 2700.0, v=v, f_ext=np.array([[0, 0], [0, 50.0], [0, -50.0]]))
+    blk.omega[2] = 3.0
+    return Scene(name="press", params=Params(gravity=(0.0, 0.0), dt=2e-5,
+                                             dem=DemParams(kn=1e5, ks=5e4, mu=0.5)),
+                 domain_lo=(0.0, 0.0), domain_hi=(0.2, 0.2), v_max=1.0, solid=blk).validate()
+
+
+_ROLLOUT = jax.jit(forward.rollout, static_argnums=(0, 3, 4))
+
+
+def _run(scene, n_steps, observe, fn=_ROLLOUT, **opts):
+    phys = Physics.for_scene(scene, x64=True, **opts)
+    p = scene.params.as_arrays(jnp.float64)
+    st = init.init_state(scene, phys, p)
+    return fn(phys, st, p, n_steps, observe)
+
+
+def _obs(s):
+    return s.solid_nbrs.idx, s.solid.shear, s.status.rebuilds
+
+
+@pytest.fixture(scope="module")
+def press_runs(float64):
+    """dem_skin 0.05 R (rebuilds every ~12 steps) and 2 R (never rebuilds), 400 steps."""
+    sc = _press_scene()
+    small = _run(sc, 400, _obs, dem_skin=0.05, capacity_multiplier=3.0)
+    large = _run(sc, 400, _obs, dem_skin=2.0, capacity_multiplier=3.0)
+    return sc, small, large
+
+
+def _slot(idx, i, j):
+    """Slot of j in row i of a stack of Dense lists (steps, n, K)."""
+    hit = idx[:, i, :] == j
+    assert hit.any(axis=1).all()
+    return np.argmax(hit, axis=1)
+
+
+@x64
+def test_shear_history_survives_neighbour_rebuilds(press_runs):
+    """C enters A's row before B, so B's slot moves at a rebuild while the A–B contact
+    carries a shear force; the history follows the pair. Same trajectories as without any
+    rebuild, to round-off (here: bit for bit)."""
+    sc, (small, (idx_s, sh_s, _)), (large, (idx_l, sh_l, _)) = press_runs
+    assert not bool(small.status.overflow) and not bool(large.status.overflow)
+    assert int(small.status.rebuilds) >= 10 and int(large.status.rebuilds) == 0
+    idx_s, sh_s, idx_l, sh_l = (np.asarray(a) for a in (idx_s, sh_s, idx_l, sh_l))
+    steps = np.arange(idx_s.shape[0])
+    slot_s, slot_l = _slot(idx_s, 1, 2), _slot(idx_l, 1, 2)
+    assert set(slot_s) == {0, 1}                            # B (2) changed slot in A's row
+    k = np.argmax(np.diff(slot_s) != 0) + 1                 # first step it moved
+    ab_small, ab_large = sh_s[steps, 1, slot_s], sh_l[steps, 1, slot_l]
+    assert abs(ab_small[k]) > 1.0 and abs(ab_small[k - 1]) > 1.0   # N: real history
+    np.testing.assert_allclose(ab_small, ab_large, rtol=1e-12, atol=1e-12)
+    # B's own row (the force on B) too
+    np.testing.assert_allclose(sh_s[steps, 2, _slot(idx_s, 2, 1)],
+                               sh_l[steps, 2, _slot(idx_l, 2, 1)], rtol=1e-12, atol=1e-12)
+    for f in ("x", "v", "omega", "theta"):
+        np.testing.assert_allclose(getattr(small.solid, f), getattr(large.solid, f),
+                                   rtol=1e-12, atol=1e-15)
+
+
+@x64
+def test_losing_history_at_rebuild_would_be_detected(press_runs, monkeypatch):
+    """Control for the test above: with the history dropped at each rebuild the same run
+    differs visibly, so the comparison is sensitive."""
+    sc, _, (large, _) = press_runs
+    monkeypatch.setattr(dem, "remap_history", lambda o, h, n: jnp.zeros(n.shape, h.dtype))
+    fresh = jax.jit(lambda *a: forward.rollout(*a), static_argnums=(0, 3, 4))
+    lost, _ = _run(sc, 400, None, fn=fresh, dem_skin=0.05, capacity_multiplier=3.0)
+    assert np.max(np.abs(np.asarray(lost.solid.v - large.solid.v))) > 1e-3
+
+
+# --- bonds in the DEM stage (float64) ---------------------------------------------------
+KN, KS = 1.0e9, 4.0e8                        # bond stiffnesses k̄_n, k̄_s
+R_BOND = 0.005
+D0 = 2 * R_BOND
+AREA = 2 * R_BOND * 1.0                       # slab, λ = 1, t = 1 m: 0.01 m²
+
+
+def _pair_scene(sigma_c=1.0e6, dt=1e-6):
+    x = np.array([[0.05, 0.05], [0.05 + D0, 0.05]])
+    blk = disc_block(x, R_BOND, 2700.0)
+    return Scene(name="pair", params=Params(
+        gravity=(0.0, 0.0), dt=dt, dem=DemParams(kn=1.0e7, ks=0.0, mu=0.0),
+        bond=BondParams(kn=KN, ks=KS, sigma_c=sigma_c)),
+        domain_lo=(0.0, 0.0), domain_hi=(0.1, 0.1), v_max=1.0, solid=blk,
+        bonds=BondBlock(i=np.array([0], np.int32), j=np.array([1], np.int32))).validate()
+
+
+@x64
+def test_broken_bond_stays_broken_in_step():
+    """Stretch beyond σ̄_c/k̄_n = 1 mm: breaks at step 1 (t = Δt, mode tension). Then pushed
+    back into compression the pair meets through the contact law only, the bond stays broken
+    and its record unchanged."""
+    sc = _pair_scene()
+    phys = Physics.for_scene(sc, x64=True)
+    p = sc.params.as_arrays(jnp.float64)
+    st = init.init_state(sc, phys, p)
+    assert bool(st.bonds.intact[0]) and float(st.bonds.t_break[0]) == -1.0
+    step = jax.jit(forward.step, static_argnums=0)
+    s = st.solid
+    st = st.replace(solid=s.replace(x=s.x.at[1, 0].add(2e-3)))
+    st = step(phys, st, p)
+    b = st.bonds
+    assert not bool(b.intact[0]) and int(b.mode[0]) == 1
+    assert float(b.t_break[0]) == pytest.approx(1e-6, rel=1e-12)
+    np.testing.assert_array_equal(np.asarray(st.solid.acc), 0.0)      # nothing acts now
+    # compress by 1e-4: contact only, k_n δ = 1e3 N (an intact bond would add k̄_n A δ)
+    s = st.solid
+    x = s.x.at[1, 0].set(s.x[0, 0] + D0 - 1e-4)
+    st = st.replace(solid=s.replace(x=x, v=jnp.zeros_like(s.v), acc=jnp.zeros_like(s.acc)))
+    st = step(phys, st, p)
+    m = float(sc.solid.mass[1])
+    np.testing.assert_allclose(np.asarray(st.solid.acc)[1], [1.0e7 * 1e-4 / m, 0.0],
+                               rtol=1e-9, atol=1e-6)
+    for _ in range(3):
+        st = step(phys, st, p)
+        b = st.bonds
+        assert not bool(b.intact[0]) and int(b.mode[0]) == 1
+        assert float(b.t_break[0]) == pytest.approx(1e-6, rel=1e-12)
+        assert float(b.fn[0]) == 0.0 and float(b.fs[0]) == 0.0 and float(b.m[0]) == 0.0
+    assert int(st.step) == 5
+
+
+@x64
+def test_intact_bond_records_loads_in_step():
+    """An intact bond compressed by 1e-4: recorded F̄_n = −k̄_n A 1e-4 and the contact adds
+    k_n δ: acceleration (k̄_n A + k_n) δ/m."""
+    sc = _pair_scene()
+    phys = Physics.for_scene(sc, x64=True)
+    p = sc.params.as_arrays(jnp.float64)
+    st = init.init_state(sc, phys, p)
+    s = st.solid
+    st = st.replace(solid=s.replace(x=s.x.at[1, 0].add(-1e-4)))
+    st = jax.jit(forward.step, static_argnums=0)(phys, st, p)
+    assert bool(st.bonds.intact[0]) and int(st.bonds.mode[0]) == 0
+    assert float(st.bonds.t_break[0]) == -1.0
+    assert float(st.bonds.fn[0]) == pytest.approx(-KN * AREA * 1e-4, rel=1e-9)
+    m = float(sc.solid.mass[1])
+    assert float(st.solid.acc[1, 0]) == pytest.approx((KN * AREA + 1.0e7) * 1e-4 / m, rel=1e-9)
+
+
+# --- multi-rate sub-steps (float64) --------------------------------------------------------
+@x64
+def test_substeps_equal_small_single_steps_of_the_discs():
+    """n DEM sub-steps of Δt/n inside one step (stages.discs) = n single DEM sub-steps of Δt/n
+    (fluid force held)."""
+    sc = coarse_plate()
+    phys, params = setup(sc, x64=True)
+    p = params.as_arrays(jnp.float64)
+    st = stages.clock(phys, p, init.init_state(sc, phys, p))   # t = Δt, the end of the step
+    n = phys.dem_substeps
+    multi = jax.jit(stages.discs, static_argnums=0)(phys, p, st)
+    f = stages.fluid_force_on_discs(phys, st)
+    assert float(jnp.abs(f).sum()) > 0
+    one = jax.jit(stages._disc_substep, static_argnums=0)
+    s = st
+    for k in range(n):
+        s = one(phys, p, s, (k + 1) * p.dt / n, p.dt / n, f, None)
+    np.testing.assert_allclose(np.asarray(multi.solid.x), np.asarray(s.solid.x), rtol=0,
+                               atol=1e-15)
+
+
+# --- the SPH evaluation with a grain (float64) -------------------------------------------
+@x64
+def test_still_water_beside_a_grain_is_in_balance():
+    """Fluid among grains gets mass ε ρ0 Δx² (builder) and the pressure bracket
+    (P_i + P_j)/(ε_iρ_i ε_jρ_j): a fluid particle next to a grain of the fluid's density starts
+    in balance, and so does the grain (buoyancy = weight)."""
+    scene = grain_scene(width=0.02, height=0.03, x0=0.01, y0=0.015)
+    phys, p, st = init_x64(scene)
+    x, a = np.asarray(st.fluid.x), np.asarray(st.fluid.acc)
+    near = np.linalg.norm(x - [0.01, 0.015], axis=1) < 0.006
+    assert near.sum() > 20 and float(np.asarray(st.fpi.eps).min()) < 0.75   # a real well
+    assert np.abs(a[near]).max() < 0.02 * 9.81
+    weight = float(scene.solid.mass[0]) * 9.81
+    assert float(st.fpi.force[0, 1]) == pytest.approx(weight, rel=1e-9)      # Archimedes
