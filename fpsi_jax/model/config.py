@@ -126,12 +126,21 @@ class Physics:
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
                "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
-               "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section", "dem_skin", "fsi", "dem_substeps", "fpi",
-               "voidage", "lubrication", "fpi_pressure", "eps_floor")
+               "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section",
+               "dem_skin", "fsi", "dem_substeps", "fpi", "voidage", "lubrication",
+               "fpi_pressure", "eps_floor")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,
                "fpi_pressure": FpiPressure}
+
+    def __post_init__(self):
+        # a Physics built by hand may name its choices by string: make them members, so the
+        # compiled code's identity comparisons (phys.fsi is FsiMethod.EXTRAPOLATED) hold
+        for key, kind in self.CHOICES.items():
+            value = getattr(self, key)
+            if value is not None and not isinstance(value, kind):
+                object.__setattr__(self, key, choose(kind, key, value))
 
     @classmethod
     def for_scene(cls, scene: Scene, **overrides) -> "Physics":
@@ -148,9 +157,6 @@ class Physics:
         # and the 0.25 h skin that suits it (Scene.fsi_coupled).
         skin_factor = opts.pop("skin", 0.25 if scene.fsi_coupled else 0.4)
         cap = opts.pop("capacity_multiplier", 1.25)
-        for key, kind in cls.CHOICES.items():
-            if opts.get(key) is not None:
-                opts[key] = choose(kind, key, opts[key])
         h_margin = float(opts.get("h_margin", 1.05))
         if not 1.0 <= h_margin <= 2.0:
             raise ParameterError(f"h_margin = {h_margin} out of range; allowed [1, 2]")

@@ -161,7 +161,7 @@ class Scene:
     @property
     def fsi_coupled(self) -> bool:
         """Structure discs coupled to the fluid (option fsi): such a scene keeps physics.md's
-        step coefficients and the 0.25 h skin that suits them (integrate.FSI_SPH_CFL)."""
+        step coefficients and the 0.25 h skin that suits them (solver.timestep.FSI_SPH_CFL)."""
         return (self.fluid is not None and self.solid is not None
                 and self.options.get("fsi") is not None)
 

@@ -1,9 +1,11 @@
 """Weakly compressible SPH fluid (physics.md §SPH: W41–W46, K28–K39).
 
-Pure functions of arrays. The pair sums use jax-md's Dense neighbour format: ``idx`` has one
-row per *fluid* particle and holds indices into the concatenation [fluid; boundary]; the
-padding index is n_fluid + n_boundary, which points at a dummy particle placed far away so
-every kernel term of a padded slot is exactly zero.
+Pure functions of arrays, one law per function: each ``*_scalar`` (and ``delta_pairs``,
+``continuity_pairs``) is one term of one pair of the (rows, K) neighbour table built by
+:func:`fpsi_jax.physics.pairs.pairs`, and the two sums the step uses are
+:func:`density_rate` and :func:`momentum_rate`. The rows are the *fluid* particles; the
+neighbour indices point into [fluid; boundary; structure] and the padding slots at a dummy
+particle far away, so every kernel term of a padded slot is exactly zero.
 
 Notation: x_ij = x_i − x_j, v_ij = v_i − v_j, h_ij = (h_i + h_j)/2 (K37: symmetric pairs),
 ∇_i W_ij = x_ij F_ij with F = (1/r) dW/dr (see ``kernels``). Each pair term is antisymmetric
@@ -29,7 +31,11 @@ def continuity_pairs(pr: Pairs):
 
 
 def delta_pairs(delta, c0, rho_i, pr: Pairs, diffused=None):
-    """Pair terms of :func:`delta_diffusion`."""
+    """δ-SPH density diffusion (Molteni & Colagrossi 2009), per pair:
+    δ h_ij c0 ψ_ij·∇_iW_ij V_j, ψ_ij = 2(ρ_j − ρ_i) x_ji/(r² + 0.01h²), on fluid–fluid
+    pairs only (summed over j in :func:`density_rate`). ``diffused`` = (ρ_i, ρ_j) diffuses
+    another density than the one of the volumes m_j/ρ_j (with grains: the intrinsic ρ,
+    while the volumes use ερ)."""
     d_i, d_j = (rho_i, pr.rho_j) if diffused is None else diffused
     s = (2.0 * (d_j - d_i[:, None]) * (-pr.r2 * pr.f)
          / (pr.r2 + 0.01 * pr.hij ** 2) * pr.m_j / pr.rho_j)
@@ -37,7 +43,9 @@ def delta_pairs(delta, c0, rho_i, pr: Pairs, diffused=None):
 
 
 def pressure_scalar(m_j, coef, f):
-    """The scalar s of :func:`pressure_pairs` = s x_ij: −m_j coef F_ij."""
+    """Pressure (W43, K34), per pair: the scalar s of the pair term s x_ij =
+    −m_j (P_i/ρ_i² + P_j/ρ_j² + R_ij) ∇_iW_ij, i.e. s = −m_j coef F_ij with ``coef`` the
+    bracket (anti-clump R_ij included; :func:`voidage_bracket` with grains)."""
     return -(m_j * coef * f)
 
 
@@ -52,13 +60,17 @@ def voidage_bracket(p_i, rt_i, p_j, rt_j):
 
 
 def viscous_scalar(mu_i, mu_j, rho_i, rho_j, pr: Pairs):
-    """The scalar s of :func:`viscous_pairs` = s v_ij."""
+    """Morris viscosity (K36), per pair: the scalar s of the pair term s v_ij =
+    m_j (μ_i + μ_j) v_ij (x_ij·∇_iW_ij)/(ρ_i ρ_j (r² + 0.01h²))."""
     return (pr.m_j * (mu_i + mu_j) * pr.r2 * pr.f
             / (rho_i[:, None] * rho_j * (pr.r2 + 0.01 * pr.hij ** 2)))
 
 
 def artificial_viscosity_scalar(alpha, c0, rho_i, rho_j, pr: Pairs):
-    """The scalar s of :func:`artificial_viscosity_pairs` = s x_ij: −m_j Π_ij F_ij."""
+    """Monaghan (1992) artificial viscosity, the option DualSPHysics users know (not in the
+    seeds; off unless Physics says so), per pair: the scalar s of −m_j Π_ij ∇_iW_ij = s x_ij,
+    Π_ij = −α c0 μ_ij/ρ̄_ij for approaching pairs (v_ij·x_ij < 0),
+    μ_ij = h_ij v_ij·x_ij/(r² + 0.01h²), so s = −m_j Π_ij F_ij."""
     vx = pr.vij[..., 0] * pr.dx[..., 0] + pr.vij[..., 1] * pr.dx[..., 1]
     mu_ij = pr.hij * jnp.minimum(vx, 0.0) / (pr.r2 + 0.01 * pr.hij ** 2)
     pi_ij = -alpha * c0 * mu_ij / (0.5 * (rho_i[:, None] + rho_j))
@@ -81,15 +93,20 @@ def wall_repulsion_scalar(beta, c0, r0, is_wall, pr: Pairs):
     row) and acts on a particle about to pass between two wall particles (≤ Δx_wall/2 from
     both): the Adami wall pressure takes its value from the fluid around it, so a slow
     particle at the free surface of a corner meets a near-zero wall pressure and could
-    creep through the layers (docs/design.md, "Wall backstop"). Written in r² (no root, no divide) so
-    it costs little per pair. Conservative, U = β c0²/6 (1 − r²/r0²)³, with stiffness at
+    creep through the layers (docs/design.md, "Boundaries"). Written in r² (no root, no
+    divide) so it costs little per pair. Conservative, U = β c0²/6 (1 − r²/r0²)³, with stiffness at
     most β c0²/r0²: ``sph_dt`` keeps Δt ≤ r0/(c0 √β), half the leapfrog limit."""
     q = jnp.maximum(1.0 - pr.r2 * (1.0 / (r0 * r0)), 0.0)
     return jnp.where(is_wall, (beta * c0 * c0 / (r0 * r0)) * q * q, 0.0)
 
 
 def xsph_scalar(eps, rho_i, rho_j, pr: Pairs):
-    """The scalar s of :func:`xsph_pairs` = s v_ij."""
+    """XSPH (K39, Monaghan 1989), per pair: the scalar s of the correction
+    δv_i = Σ_j s v_ij = −ε Σ_j (m_j/ρ̄_ij) v_ij W_ij, ρ̄_ij = (ρ_i+ρ_j)/2, over fluid
+    neighbours only. With the (v = 0) boundary particles in the sum, the transport velocity
+    near a wall is pulled towards zero while the momentum is not, and the bottom layer of a
+    dam break sinks into the floor (−0.5 mm at t = 0.3 s at dx = 10 mm, through the wall by
+    0.35 s at 5 mm; +3 mm, i.e. no penetration, with fluid pairs only)."""
     return -eps * jnp.where(pr.fluid_j, pr.m_j * pr.w / (0.5 * (rho_i[:, None] + rho_j)), 0.0)
 
 

@@ -156,7 +156,7 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
 def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, wet) -> State:
     """One DEM kick–drift–kick of length ``dt`` ending at time ``t``."""
     s = state.solid
-    with jax.named_scope("integrate.solid_kick_drift"):
+    with jax.named_scope("step.solid_kick_drift"):
         v_half = s.v + 0.5 * dt * s.acc
         w_half = s.omega + 0.5 * dt * s.alpha
         x_new = s.x + dt * v_half
@@ -174,7 +174,7 @@ def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, w
                           overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool)))
     state = disc_forces(phys, params, state, dt, f_fluid, wet)
     s = state.solid
-    with jax.named_scope("integrate.solid_kick"):
+    with jax.named_scope("step.solid_kick"):
         return state.replace(solid=s.replace(v=s.v + 0.5 * dt * s.acc,
                                              omega=s.omega + 0.5 * dt * s.alpha))
 
@@ -199,7 +199,7 @@ def discs(phys: Physics, params: Params, state: State) -> State:
     if n == 1:
         part = one(0, part)
     else:
-        with jax.named_scope("integrate.dem_substeps"):
+        with jax.named_scope("step.dem_substeps"):
             part = jax.lax.fori_loop(0, n, one, part)
     return state.replace(solid=part.solid, bonds=part.bonds, solid_nbrs=part.solid_nbrs,
                          status=part.status)
@@ -216,7 +216,7 @@ def fluid_kick_drift(phys: Physics, params: Params, state: State) -> State:
     """v½ = v + ½Δt a, x' = x + Δt (v½ + δv_XSPH): the fluid's ``v`` holds v½ until
     :func:`fluid_kick`."""
     dt, f = params.dt, state.fluid
-    with jax.named_scope("integrate.kick_drift"):
+    with jax.named_scope("step.kick_drift"):
         v_half = f.v + 0.5 * dt * f.acc
         x_new = f.x + dt * (v_half + f.xsph)
     return state.replace(fluid=f.replace(x=x_new, v=v_half))
@@ -362,7 +362,7 @@ def evaluate_fluid(phys: Physics, params: Params, state: State, dt) -> State:
 def fluid_kick(phys: Physics, params: Params, state: State) -> State:
     """v' = v½ + ½Δt a'."""
     f = state.fluid
-    with jax.named_scope("integrate.kick"):
+    with jax.named_scope("step.kick"):
         return state.replace(fluid=f.replace(v=f.v + 0.5 * params.dt * f.acc))
 
 

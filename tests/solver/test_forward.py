@@ -405,11 +405,11 @@ def test_grain_velocity_gradient_wrt_viscosity_matches_finite_differences():
 @x64
 def test_dem_only_scene_compiles_no_sph(step_hlo):
     _, scopes, files = step_hlo(cases.build("collision"), jnp.float64)
-    for want in ("dem.contacts", "dem.local_damping", "integrate.solid_kick_drift",
+    for want in ("dem.contacts", "dem.local_damping", "step.solid_kick_drift",
                  "neighbors.dem_update"):
         assert want in scopes, want
     assert not [s for s in scopes if s.startswith(("sph.", "boundary."))]
-    for absent in ("integrate.kick_drift", "neighbors.update", "dem.walls", "bonds"):
+    for absent in ("step.kick_drift", "neighbors.update", "dem.walls", "bonds"):
         assert absent not in scopes, absent
     assert "dem.py" in files and "sph.py" not in files and "kernels.py" not in files
     _, scopes_w, files_w = step_hlo(cases.build("rolling"), jnp.float64)
@@ -421,7 +421,7 @@ def test_fluid_only_scene_compiles_no_dem(tiny_tank, step_hlo):
     _, scopes, files = step_hlo(tiny_tank)
     assert "sph.continuity" in scopes and "sph.pressure" in scopes
     assert not [s for s in scopes if s.startswith("dem.")]
-    for absent in ("bonds", "integrate.solid_kick_drift", "neighbors.dem_update"):
+    for absent in ("bonds", "step.solid_kick_drift", "neighbors.dem_update"):
         assert absent not in scopes, absent
     assert "sph.py" in files and "dem.py" not in files and "bonds.py" not in files
 
@@ -437,7 +437,7 @@ def test_bonded_scene_compiles_bonds(step_hlo):
 @x64
 def test_coupled_step_compiles_the_coupling_and_fluid_only_does_not(step_hlo, tiny_tank):
     _, scopes, _ = step_hlo(coarse_plate(), jnp.float64, x64=True)
-    assert {"fsi.extrapolated", "fsi.reaction", "integrate.dem_substeps"} <= scopes
+    assert {"fsi.extrapolated", "fsi.reaction", "step.dem_substeps"} <= scopes
     _, scopes, _ = step_hlo(tiny_tank)
     assert not any(s.startswith("fsi.") for s in scopes)
 
@@ -448,7 +448,7 @@ def test_multirate_step_hlo_shows_the_dem_substep_mechanisms(step_hlo):
     are relative ("bonds/..."): the HLO fixture must see them, or an absence test on a
     coupled scene would pass whether the mechanism is compiled or not."""
     _, scopes, _ = step_hlo(coarse_plate())
-    assert {"dem.contacts", "bonds", "integrate.dem_substeps", "fsi.extrapolated"} <= scopes
+    assert {"dem.contacts", "bonds", "step.dem_substeps", "fsi.extrapolated"} <= scopes
     assert "dem.walls" not in scopes                 # the plate has no DEM walls
 
 
