@@ -17,13 +17,13 @@ import dataclasses
 import math
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from fpsi_jax.cases import build
-from fpsi_jax.cases.beams import euler_bernoulli_f1, tip_deflection
-from fpsi_jax.cases.fsi_cases import GATE_COARSE  # noqa: F401  (cases.GATE_COARSE)
+from fpsi_jax.cases.cantilever import euler_bernoulli_f1, tip_deflection
+from fpsi_jax.cases.elastic_gate import GATE_COARSE  # noqa: F401  (cases.GATE_COARSE)
 from fpsi_jax.model.errors import ParameterError
+from fpsi_jax.run import observers
 
 from . import space as sp
 from .fit import Calibration
@@ -33,10 +33,7 @@ from .targets import FreeVibration, StaticDeflection, Trajectory
 
 def tracker(scene, idx):
     """observe(state) = mean displacement of the discs ``idx`` from their start (2,)."""
-    idx = np.asarray(idx, int)
-    x0 = np.asarray(scene.solid.x[idx].mean(axis=0))
-    ii = jnp.asarray(idx)
-    return lambda s: jnp.mean(s.solid.x[ii], axis=0) - jnp.asarray(x0, s.solid.x.dtype)
+    return observers.mean_displacement(scene.solid.x, np.asarray(idx, int))
 
 
 def cantilever_tip(scene) -> np.ndarray:
@@ -153,7 +150,7 @@ def gate_reference():
     """(t, ux, uy) of the Antoci et al. (2007) experiment (consensus of two digitisations,
     fpsi_jax/data, provenance in its README)."""
     from fpsi_jax.cases.registry import load_csv
-    from fpsi_jax.validate_fsi import GATE_EXPERIMENT
+    from fpsi_jax.cases.elastic_gate import GATE_EXPERIMENT
     ref = load_csv(GATE_EXPERIMENT)
     return ref[:, 0], ref[:, 1], ref[:, 3]
 
@@ -167,7 +164,7 @@ def gate_target(t_fit=0.2, t0=0.0):
 def elastic_gate(*, resolution="coarse", t_fit=0.2, damping_start=0.5, stiffness_start=1.0,
                  stiff_bounds=(0.5, 2.0), damping_bounds=(0.01, 200.0), chunk=None,
                  remat_step=True, **scene_kw) -> Case:
-    """The elastic gate (issue 4's defaults, uncalibrated: E = 10 MPa, ν = 0.4 plane strain,
+    """The elastic gate (the scene's defaults, uncalibrated: E = 10 MPa, ν = 0.4 plane strain,
     no damping) fitted on its tip u_x, u_y against the experiment for t ≤ ``t_fit``:
     the stiffness scale (E_fit = scale × E) and the viscous damping c [1/s] (start
     ``damping_start``, ~0.3 % of critical in the first dry mode, practically the
@@ -175,7 +172,7 @@ def elastic_gate(*, resolution="coarse", t_fit=0.2, damping_start=0.5, stiffness
     (1.75 / 1.25 mm); other keywords go to the scene builder. ``remat_step`` checkpoints
     every step inside the √n chunks (XLA's temporary memory of the full 0.4 s seed-resolution
     gradient: 0.55 GB instead of 13.7 GB; experiments/calibration_cost.py)."""
-    from fpsi_jax.cases.fsi_cases import gate_tip
+    from fpsi_jax.cases.elastic_gate import gate_tip
     if resolution not in ("coarse", "seed"):
         raise ParameterError(f"resolution = {resolution!r}; allowed 'coarse', 'seed'")
     kw = {**(GATE_COARSE if resolution == "coarse" else {}), **scene_kw}

@@ -36,8 +36,8 @@ def run(args) -> int:
     sig = inspect.signature(builder).parameters
     allowed = [n for n, q in sig.items() if q.kind == q.KEYWORD_ONLY]
     if any(q.kind == q.VAR_KEYWORD for q in sig.values()):      # the rest go to the scene
-        from fpsi_jax import cases as scenes
-        allowed += [k for k in scenes.builder_keys(cases.SCENE_OF[args.case])
+        from fpsi_jax.cases import builder_keys
+        allowed += [k for k in builder_keys(cases.SCENE_OF[args.case])
                     if k not in allowed and k not in ("damping", "t_end", "variant")]
     bad = [k for k in kw if k not in allowed]
     if bad:

@@ -13,101 +13,14 @@ import sys
 from .model.errors import ParameterError, SimulationError
 
 
-def _plot_run(scene, res, out_png):
-    """Dam break: front Z(T) against Koshizuka & Oka; otherwise a particle snapshot."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-    from .cases import validate
-
-    f = res.state.fluid
-    fig, axes = plt.subplots(1, 2 if scene.name == "dam_break" else 1,
-                             figsize=(11 if scene.name == "dam_break" else 6, 4.2))
-    axes = np.atleast_1d(axes)
-    if f is not None:
-        x = np.asarray(f.x)
-        sc = axes[0].scatter(x[:, 0], x[:, 1], c=np.linalg.norm(np.asarray(f.v), axis=1), s=2,
-                             cmap="viridis")
-        fig.colorbar(sc, ax=axes[0], label="|v| [m/s]")
-    if scene.boundary is not None:
-        axes[0].scatter(scene.boundary.x[:, 0], scene.boundary.x[:, 1], s=1, c="0.6")
-    if res.state.solid is not None:
-        draw_solids(axes[0], scene, res.state)
-    axes[0].set_aspect("equal")
-    axes[0].set_title(f"{scene.name}, t = {float(res.state.t):.3f} s")
-    if scene.name == "dam_break" and res.observations is not None:
-        T, Z = validate.dam_break_front(scene, res)
-        ref = validate.load_csv("koshizuka_oka1996_surge_front.csv")
-        axes[1].plot(T, Z, label=f"fpsi-jax, dx = {scene.builder_kwargs['dx'] * 1e3:g} mm")
-        axes[1].plot(ref[:, 0], ref[:, 1], "ko", label="Koshizuka & Oka (1996)")
-        axes[1].set_xlabel("T = t sqrt(2g/a)")
-        axes[1].set_ylabel("Z = x_front / a")
-        axes[1].set_xlim(0, max(3.5, float(ref[:, 0].max()) + 0.2))
-        axes[1].legend()
-        axes[1].grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out_png, dpi=120)
-    plt.close(fig)
-
-
-def _plot_gate_run(scene, res, png):
-    """Tip ux, uy against the experiment (and other codes) in ``png``, the final state in
-    ``<png>_snapshot.png``; prints the error figures."""
-    from .cases import validate_fsi
-    t, ux, uy = validate_fsi.tip_displacement(scene, res)
-    validate_fsi.plot_gate([(f"fpsi-jax ({scene.builder_kwargs['coupling']})", t, ux, uy)],
-                           png, f"{scene.name}: gate tip vs Antoci et al. (2007)")
-    snap = png[:-4] + "_snapshot.png"
-    _plot_run(scene, res, snap)
-    print(f"wrote {snap}")
-    m = validate_fsi.gate_metrics(t, ux, uy)
-    print(f"peak tip ux {m['peak_ux_m'] * 1e3:.1f} mm at {m['t_peak_s']:.3f} s; experiment "
-          f"{m['exp_peak_ux_m'] * 1e3:.1f} mm at {m['exp_t_peak_s']:.2f} s: "
-          f"{m['peak_ux_rel_error']:+.1%}, {m['t_peak_error_s']:+.3f} s")
-    print(f"RMS vs experiment over 0-{min(0.36, t[-1]):.2f} s ({m['frames']} frames): ux "
-          f"{m['rms_ux_m'] * 1e3:.2f} mm, uy {m['rms_uy_m'] * 1e3:.2f} mm "
-          f"({m['rms_ux_rel_peak']:.1%}, {m['rms_uy_rel_peak']:.1%} of the experiment's peaks)")
-    if res.state.bonds is not None:
-        import numpy as np
-        broken = int((~np.asarray(res.state.bonds.intact)).sum())
-        if broken:
-            tb = np.asarray(res.state.bonds.t_break)
-            print(f"{broken} bonds broken, the first at t = {tb[tb >= 0].min():.4f} s")
-
-
-def draw_solids(ax, scene, state, color="tab:orange"):
-    """Discs as circles (clamped ones grey), intact bonds as lines, walls as thick lines."""
-    import numpy as np
-    from matplotlib.collections import LineCollection, PatchCollection
-    from matplotlib.patches import Circle
-
-    s = state.solid
-    x, r = np.asarray(s.x), np.asarray(s.radius)
-    fixed = np.asarray(s.fixed)
-    circles = [Circle(xy, rad) for xy, rad in zip(x, r)]
-    ax.add_collection(PatchCollection(circles, facecolor=np.where(fixed, "0.6", color),
-                                      edgecolor="k", linewidth=0.2))
-    if state.bonds is not None:
-        b = state.bonds
-        ok = np.asarray(b.intact)
-        seg = np.stack([x[np.asarray(b.i)[ok]], x[np.asarray(b.j)[ok]]], axis=1)
-        ax.add_collection(LineCollection(seg, colors="k", linewidths=0.3))
-    if scene.walls is not None:
-        seg = np.stack([scene.walls.a, scene.walls.b], axis=1)
-        ax.add_collection(LineCollection(seg, colors="k", linewidths=2))
-    ax.autoscale_view()
-
-
 def cmd_list(args):
-    from . import cases as scenes
-    from .cases import validate
+    from . import cases
     print("scenes:")
-    for name, fn in scenes.SCENES.items():
+    for name, fn in cases.SCENES.items():
         doc = (fn.__doc__ or "").strip().splitlines()[0]
         print(f"  {name:20s} {doc}")
     print("validation cases:")
-    for name, d in validate.DESCRIPTIONS.items():
+    for name, d in cases.DESCRIPTIONS.items():
         print(f"  {name:20s} {d}")
     for command in _plugins().values():
         if hasattr(command, "list_cases"):
@@ -116,8 +29,9 @@ def cmd_list(args):
 
 
 def cmd_run(args):
+    from . import cases
     from .cases import overrides as ov
-    from .cases import validate
+    from .cases.plotting import default_plot
     from .run.simulate import setup, simulate
 
     scene, phys = ov.build(args.scene, ov.parse_pairs(args.set))
@@ -128,11 +42,8 @@ def cmd_run(args):
     if unsafe and args.dt is None:
         raise ParameterError("--unsafe-dt needs --dt")
     setup(scene, args.dt, unsafe_dt=unsafe, **phys)    # every check before compiling
-    gate = scene.name in ("elastic_gate", "gate_failure")
-    observe = validate.front_observer if scene.name == "dam_break" else None
-    if gate:
-        from .cases import validate_fsi
-        observe = validate_fsi.tip_observer(scene)
+    observer = cases.OBSERVERS.get(scene.name)
+    observe = observer(scene) if observer is not None else None
     try:
         res = simulate(scene, t_end=t_end, output=args.out, every=args.every,
                        progress=not args.quiet, dt=args.dt, observe=observe, unsafe_dt=unsafe,
@@ -152,21 +63,8 @@ def cmd_run(args):
     if args.plot:
         png = os.path.splitext(args.out or f"results/{scene.name}.h5")[0] + ".png"
         os.makedirs(os.path.dirname(os.path.abspath(png)), exist_ok=True)
-        if gate:
-            _plot_gate_run(scene, res, png)
-        else:
-            _plot_run(scene, res, png)
-        print(f"wrote {png}")
-        if scene.name == "dam_break" and res.observations is not None:
-            import numpy as np
-            T, Z = validate.dam_break_front(scene, res)
-            ref = validate.load_csv("koshizuka_oka1996_surge_front.csv")
-            ref = ref[(ref[:, 0] > 0) & (ref[:, 0] <= T.max())]
-            z = np.interp(ref[:, 0], T, Z)
-            print("front vs Koshizuka & Oka:  T      Z_exp   Z_sim   rel.err")
-            for t_, zr, zs in zip(ref[:, 0], ref[:, 1], z):
-                print(f"                          {t_:5.3f}  {zr:6.3f}  {zs:6.3f}  "
-                      f"{(zs - zr) / zr:+.1%}")
+        for line in cases.PLOTS.get(scene.name, default_plot)(scene, res, png):
+            print(line)
     return 0
 
 

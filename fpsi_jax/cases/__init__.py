@@ -1,51 +1,34 @@
-"""Scene builders: one per validation case, physical parameters as keyword arguments."""
+"""The shipped scenes and their validation cases, one module per scene.
+
+Each module holds a scene's builder (registered with :func:`~.registry.scene`: physical
+parameters as keyword arguments) and, where it has them, its validation cases
+(:func:`~.registry.validation`: reference, observer, metric), the observer ``fpsi run``
+records and its plot. ``build(name, **kw)`` builds a registered scene by name; the
+builders themselves are attributes of this package (``cases.dam_break(dx=0.01)``).
+"""
 from __future__ import annotations
 
-import inspect
-
-from ..model.errors import ParameterError
-from .beams import bond_tension, cantilever, itasca_beam
-from .dam_break import dam_break
-from .dem_cases import collision, dry_dam_break, rolling, wall_impact
-from .fpi_cases import fpsi_failure, sedimentation, two_phase_dam_break
-from .fsi_cases import elastic_gate, gate_failure, hydrostatic_plate
+# importing a module registers its scene and cases; this order is the order of
+# ``fpsi list`` and ``fpsi validate``
 from .hydrostatic_tank import hydrostatic_tank
+from .dam_break import dam_break
+from .collision import collision
+from .rolling import rolling
+from .dry_dam_break import dry_dam_break
+from .wall_impact import wall_impact
+from .itasca_beam import itasca_beam
+from .cantilever import cantilever
+from .bond_tension import bond_tension
+from .hydrostatic_plate import hydrostatic_plate
+from .elastic_gate import elastic_gate, gate_failure
+from .sedimentation import sedimentation
+from .two_phase_dam_break import two_phase_dam_break
+from .fpsi_failure import fpsi_failure
+from .registry import (CASES, DESCRIPTIONS, OBSERVERS, PLOTS, SCENE_OF, SCENES, build,
+                       builder_keys, get)
 
-SCENES = {
-    "hydrostatic_tank": hydrostatic_tank,
-    "dam_break": dam_break,
-    "collision": collision,
-    "rolling": rolling,
-    "dry_dam_break": dry_dam_break,
-    "wall_impact": wall_impact,
-    "itasca_beam": itasca_beam,
-    "cantilever": cantilever,
-    "bond_tension": bond_tension,
-    "hydrostatic_plate": hydrostatic_plate,
-    "elastic_gate": elastic_gate,
-    "gate_failure": gate_failure,
-    "sedimentation": sedimentation,
-    "two_phase_dam_break": two_phase_dam_break,
-    "fpsi_failure": fpsi_failure,
-}
-
-
-def builder_keys(name: str) -> list[str]:
-    return list(inspect.signature(get(name)).parameters)
-
-
-def get(name: str):
-    try:
-        return SCENES[name]
-    except KeyError:
-        raise ParameterError(f"unknown scene {name!r}; available: {', '.join(SCENES)}") from None
-
-
-def build(name: str, **kwargs):
-    fn = get(name)
-    keys = builder_keys(name)
-    bad = [k for k in kwargs if k not in keys]
-    if bad:
-        raise ParameterError(f"scene {name!r} has no parameter {bad[0]!r}; allowed: "
-                             f"{', '.join(keys)}")
-    return fn(**kwargs).validate()
+__all__ = ["SCENES", "CASES", "DESCRIPTIONS", "SCENE_OF", "OBSERVERS", "PLOTS", "build",
+           "builder_keys", "get", "hydrostatic_tank", "dam_break", "collision", "rolling",
+           "dry_dam_break", "wall_impact", "itasca_beam", "cantilever", "bond_tension",
+           "hydrostatic_plate", "elastic_gate", "gate_failure", "sedimentation",
+           "two_phase_dam_break", "fpsi_failure"]

@@ -1,14 +1,22 @@
-"""Water at rest in a tank: the hydrostatic pressure check (issue 2)."""
+"""Water at rest in a tank: the scene and its validation against the hydrostatic pressure
+P = ρ0 g (H − y) and zero velocity."""
 from __future__ import annotations
+
+import time
 
 import numpy as np
 
+from ..build import (boundary_block, boundary_layers, check_positive, dam_speed, domain,
+                     hydrostatic_fluid, lattice, sound_speed, sph_params, tank_walls)
 from ..model.params import Params
 from ..model.scene import Scene
-from ..build import (G, boundary_block, boundary_layers, check_positive, hydrostatic_fluid,
-                     lattice, sph_params, tank_walls)
+from ..physics import eos
+from ..run.simulate import simulate
+from . import overrides as ov
+from .registry import Record, scene, validation
 
 
+@scene
 def hydrostatic_tank(*, depth=0.3, width=0.3, dx=0.005, dx_boundary=None, h_factor=1.5,
                      rho0=1000.0, mu=1.0e-3, c0=None, r_clump=0.01, eps_xsph=0.5,
                      delta=0.1, alpha=0.1, t_end=2.0, boundary_pressure="extrapolated",
@@ -30,8 +38,8 @@ def hydrostatic_tank(*, depth=0.3, width=0.3, dx=0.005, dx_boundary=None, h_fact
     check_positive(depth=depth, width=width, dx=dx, h_factor=h_factor, rho0=rho0)
     dxb = dx if dx_boundary is None else dx_boundary
     check_positive(dx_boundary=dxb)
-    v_max = float(np.sqrt(2 * G * depth))
-    c0 = 10.0 * v_max if c0 is None else c0
+    v_max = dam_speed(depth)
+    c0 = sound_speed(v_max) if c0 is None else c0
     h = h_factor * dx
     sp = sph_params(rho0, c0, mu, dx, r_clump, eps_xsph, delta, alpha=alpha)
     fluid = hydrostatic_fluid(lattice(0.0, 0.0, width, depth, dx), rho0, c0, sp.gamma,
@@ -40,15 +48,39 @@ def hydrostatic_tank(*, depth=0.3, width=0.3, dx=0.005, dx_boundary=None, h_fact
     height = depth * 1.5
     xb = tank_walls(width, height, dxb, layers)
     boundary = boundary_block(xb, rho0, dxb, h_factor * dxb if dx_boundary else h)
-    pad = layers * dxb + 2 * h
+    lo, hi = domain((0.0, 0.0), (width, height), layers * dxb + 2 * h)
     return Scene(
-        name="hydrostatic_tank", params=Params(sph=sp),
-        domain_lo=(-pad, -pad), domain_hi=(width + pad, height + pad), v_max=v_max,
-        fluid=fluid, boundary=boundary, t_end=t_end,
+        name="hydrostatic_tank", params=Params(sph=sp), domain_lo=lo, domain_hi=hi,
+        v_max=v_max, fluid=fluid, boundary=boundary, t_end=t_end,
         options={"boundary_pressure": boundary_pressure, "delta_sph": delta_sph,
                  "artificial_viscosity": artificial_viscosity},
-        builder_kwargs=dict(depth=depth, width=width, dx=dx, dx_boundary=dxb,
-                            h_factor=h_factor, rho0=rho0, mu=mu, c0=c0, r_clump=r_clump,
-                            eps_xsph=eps_xsph, delta=delta, alpha=alpha, t_end=t_end,
-                            boundary_pressure=boundary_pressure, delta_sph=delta_sph,
-                            artificial_viscosity=artificial_viscosity))
+        builder_kwargs=dict(dx_boundary=dxb, c0=c0))
+
+
+@validation("hydrostatic_tank", "still water: pressure vs ρ0 g (H − y), residual velocity")
+def hydrostatic_tank_case(quick: bool = False, overrides: dict | None = None):
+    base = {"dx": 0.01} if quick else {}
+    scene, phys = ov.build("hydrostatic_tank", overrides or {}, base)
+    t0 = time.perf_counter()
+    res = simulate(scene, progress=False, **phys)
+    wall = time.perf_counter() - t0
+    kw = scene.builder_kwargs
+    H, dx = kw["depth"], kw["dx"]
+    sp = res.params.sph
+    g = float(-np.asarray(res.params.gravity)[1])
+    f = res.state.fluid
+    y = np.asarray(f.x[:, 1])
+    p = np.asarray(eos.pressure(f.rho, sp.rho0, sp.c0, sp.gamma))
+    below = y < H - 3 * dx
+    p_ref = float(sp.rho0) * g * (H - y[below])
+    err_p = float(np.abs(p[below] - p_ref).sum() / p_ref.sum())
+    vmax = float(np.max(np.linalg.norm(np.asarray(f.v), axis=1)))
+    scale = float(np.sqrt(g * H))
+    info = {**kw, "quick": quick, "n_particles": scene.n_particles, "steps": res.n_steps}
+    return [
+        Record("hydrostatic_tank", "pressure L1 error below top 3 layers",
+               float(np.abs(p[below]).sum() / below.sum()), float(p_ref.mean()), err_p, 0.02,
+               err_p < 0.02, wall, info),
+        Record("hydrostatic_tank", "max |v| / sqrt(gH) at t_end", vmax / scale, 0.0,
+               vmax / scale, 0.01, vmax / scale < 0.01, wall, info),
+    ]

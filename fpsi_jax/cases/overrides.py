@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 
-from .. import cases as scenes
+from . import registry
 from ..model.config import Physics
 from ..model.errors import ParameterError
 
@@ -40,12 +40,12 @@ def parse_pairs(pairs) -> dict:
 def build(scene_name: str, overrides: dict, base: dict | None = None):
     """Build ``scene_name`` with ``base`` then ``overrides`` applied.
     Returns (scene, physics_overrides)."""
-    keys = scenes.builder_keys(scene_name)
+    keys = registry.builder_keys(scene_name)
     kw = dict(base or {})
     rest = {}
     for k, v in overrides.items():
         (kw if k in keys else rest)[k] = v
-    scene = scenes.build(scene_name, **kw)
+    scene = registry.build(scene_name, **kw)
     phys_opts = {}
     params = scene.params
     for k, v in rest.items():

@@ -1,19 +1,75 @@
-"""Fluid–particle validation cases (issue 5): terminal velocity against the drag law's own
-force balance, a neutrally buoyant grain, and the Glowinski sedimentation case against a
-published y(t) (W6.2.1); registered with ``fpsi validate``."""
+"""One grain in a closed channel of fluid (Glowinski et al. 2001 as set up in W6.2.1): the
+scene and its three validations, the terminal velocity against the drag law's own force
+balance, a neutrally buoyant grain, and the settling against a published y(t)."""
 from __future__ import annotations
 
 import time
 
 import numpy as np
 
+from ..build import (boundary_block, boundary_layers, box_walls, check_positive, dam_speed,
+                     disc_block, domain, hydrostatic_fluid, lattice, sound_speed, sph_params,
+                     tank_walls)
 from ..model.errors import ParameterError
+from ..model.params import DemParams, FpiParams, Params
+from ..model.scene import Scene
 from ..physics import fpi
 from ..run.simulate import simulate
 from . import overrides as ov
-from .registry import Record, load_csv, register
+from .grains import check_voidage, fit_spacing, fluid_among_grains
+from .registry import Record, load_csv, scene, validation
 
 SEDIMENTATION_REFERENCE = "sedimentation_zhang2019_fpm_pst_y_position.csv"
+
+
+@scene
+def sedimentation(*, width=0.02, height=0.06, d=0.0025, rho_grain=1250.0, rho_fluid=1000.0,
+                  mu=0.01, x0=0.01, y0=0.04, dx=0.0015, dx_boundary=0.00125, h0=0.003,
+                  c0=None, kn=1.0e4, friction=0.3, beta_n=0.5,
+                  voidage="area", r_clump=0.01, eps_xsph=0.5, delta=0.1, x64=False,
+                  t_end=1.0) -> Scene:
+    """One grain (disc d = 2.5 mm, ρ 1250) released at rest at (``x0``, ``y0``) = (0.01,
+    0.04) m in a ``width`` × ``height`` = 0.02 × 0.06 m box of fluid (ρ 1000, μ 0.01 Pa·s);
+    W6.2.1's numerical parameters: fluid spacing 1.5 mm, boundary 1.25 mm, Wendland h 3 mm.
+
+    The channel of Glowinski et al. is closed; here its top is a free surface at y =
+    ``height`` (the grain never comes near it). The grain meets the box through DEM line
+    walls with a soft contact (``kn`` 1e4 N/m, β_n 0.5): only the landing depends on it.
+    c0 = 10 √(2 g height). With ``rho_grain`` = ``rho_fluid`` the grain is neutrally
+    buoyant; with a small ``d`` (ε → 1) it is the terminal-velocity case. ``dx`` is fitted
+    to fill ``width`` with whole columns (``builder_kwargs`` records the fitted value)."""
+    check_positive(width=width, height=height, d=d, rho_grain=rho_grain, rho_fluid=rho_fluid,
+                   mu=mu, dx=dx, dx_boundary=dx_boundary, h0=h0, kn=kn, t_end=t_end)
+    check_voidage(voidage)
+    if not (d / 2 < x0 < width - d / 2 and d / 2 < y0 < height - d / 2):
+        raise ParameterError(f"grain start ({x0}, {y0}) out of range; allowed inside the box "
+                             f"[{d / 2}, {width - d / 2}] × [{d / 2}, {height - d / 2}]")
+    v_max = dam_speed(height)
+    c0 = sound_speed(v_max) if c0 is None else c0
+    dx = fit_spacing(width, dx)
+    sp = sph_params(rho_fluid, c0, mu, dx, r_clump, eps_xsph, delta)
+    surface = round(height / dx) * dx
+    fluid = hydrostatic_fluid(lattice(0.0, 0.0, width, height, dx), rho_fluid, c0, sp.gamma,
+                              surface, dx=dx, h=h0)
+    grain = disc_block(np.array([[x0, y0]]), d / 2, rho_grain)
+    grain.grain = np.array([True])
+    grain.structure = np.array([False])
+    fluid = fluid_among_grains(fluid, grain.x, grain.radius, voidage)
+    layers = boundary_layers(h0, dx_boundary)
+    boundary = boundary_block(tank_walls(width, height, dx_boundary, layers), rho_fluid,
+                              dx_boundary, h0)
+    pad = layers * dx_boundary + 2 * h0
+    lo, hi = domain((0.0, 0.0), (width, height), (pad, pad, pad, 0.5 * height))
+    return Scene(
+        name="sedimentation",
+        params=Params(sph=sp, dem=DemParams(kn=kn, ks=0.5 * kn, mu=friction, beta_n=beta_n,
+                                            beta_s=beta_n), fpi=FpiParams()),
+        domain_lo=lo, domain_hi=hi, v_max=v_max,
+        fluid=fluid, boundary=boundary, solid=grain,
+        walls=box_walls(0.0, 0.0, width, height, top=True), t_end=t_end,
+        options={"fpi": True, "voidage": voidage, "delta_sph": True,
+                 "boundary_pressure": "extrapolated", "x64": x64},
+        builder_kwargs=dict(dx=dx, c0=c0))
 
 
 def grain_observer(state):
@@ -49,9 +105,9 @@ def _info(scene, res, quick, **extra):
             "steps": res.n_steps, "dt": float(res.params.dt), **extra}
 
 
-@register("terminal_velocity", "isolated small grain (ε → 1) settling: mean slip vs the "
-          "root of the drag law's force balance")
-def terminal_velocity(quick: bool = False, overrides: dict | None = None):
+@validation("terminal_velocity", "isolated small grain (ε → 1) settling: mean slip vs the "
+            "root of the drag law's force balance", scene="sedimentation")
+def terminal_velocity_case(quick: bool = False, overrides: dict | None = None):
     base = dict(width=0.02, height=0.03, d=0.0005, rho_grain=5000.0, y0=0.025, x64=True,
                 t_end=0.15 if quick else 0.3)
     scene, phys = ov.build("sedimentation", overrides or {}, base)
@@ -72,9 +128,9 @@ def terminal_velocity(quick: bool = False, overrides: dict | None = None):
                    rel < 0.02, wall, info)]
 
 
-@register("neutral_buoyancy", "grain of the fluid's density in still water: largest drift "
-          "over 0.5 s, in diameters")
-def neutral_buoyancy(quick: bool = False, overrides: dict | None = None):
+@validation("neutral_buoyancy", "grain of the fluid's density in still water: largest drift "
+            "over 0.5 s, in diameters", scene="sedimentation")
+def neutral_buoyancy_case(quick: bool = False, overrides: dict | None = None):
     base = dict(rho_grain=1000.0, x64=True, t_end=0.25 if quick else 0.5)
     over = dict(overrides or {})
     scene, phys = ov.build("sedimentation", over, base)
@@ -105,9 +161,9 @@ def sedimentation_metrics(t, y, ref, y0):
     return rms, float(v_ours), float(v_ref)
 
 
-@register("sedimentation", "single grain in the Glowinski channel (W6.2.1): y(t) and "
-          "settling velocity vs Zhang 2019 FPM")
-def sedimentation(quick: bool = False, overrides: dict | None = None):
+@validation("sedimentation", "single grain in the Glowinski channel (W6.2.1): y(t) and "
+            "settling velocity vs Zhang 2019 FPM")
+def sedimentation_case(quick: bool = False, overrides: dict | None = None):
     base = dict(t_end=0.3) if quick else {}
     scene, phys = ov.build("sedimentation", overrides or {}, base)
     t0 = time.perf_counter()

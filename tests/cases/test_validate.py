@@ -3,7 +3,9 @@ import json
 
 import pytest
 
-from fpsi_jax import cli, validate
+from fpsi_jax import cli
+from fpsi_jax.cases import validate
+from fpsi_jax.cases.registry import Record
 
 KEYS = {"case", "quantity", "value", "reference", "rel_error", "tolerance", "passed",
         "wall_s", "params"}
@@ -38,7 +40,7 @@ def test_reference_follows_overrides():
 
 
 def test_json_records_have_the_documented_keys(tmp_path, monkeypatch, capsys):
-    fake = [validate.Record("hydrostatic_tank", "q", 1.0, 1.0, 0.0, 0.02, True, 0.1, {})]
+    fake = [Record("hydrostatic_tank", "q", 1.0, 1.0, 0.0, 0.02, True, 0.1, {})]
     monkeypatch.setattr(validate, "run", lambda *a, **k: fake)
     out = tmp_path / "v.json"
     assert cli.main(["validate", "--quick", "--json", str(out)]) == 0
@@ -49,7 +51,7 @@ def test_json_records_have_the_documented_keys(tmp_path, monkeypatch, capsys):
 
 @pytest.mark.xfail(strict=True, reason=(
     "dam-break front runs ahead of Koshizuka & Oka (1996): +14 % at T = 2.3 at dx = 10 mm "
-    "(+13.8 % at 5 mm) against the 5 % target; see issue notes / README"))
+    "(+13.8 % at 5 mm) against the 5 % target; see docs/validation.md"))
 def test_dam_break_quick_front_within_5_percent():
     (r,) = validate.run(["dam_break"], quick=True)
     assert r.passed, r.rel_error

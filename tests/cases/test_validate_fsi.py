@@ -3,8 +3,12 @@ experiments/: hydrostatic_plate.py, elastic_gate.py)."""
 import numpy as np
 import pytest
 
-from fpsi_jax import io, validate
-from fpsi_jax.scenes.fsi_cases import plate_deflection
+from fpsi_jax import cases
+from fpsi_jax.cases import CASES
+from fpsi_jax.cases.elastic_gate import GATE_COARSE
+from fpsi_jax.cases.hydrostatic_plate import plate_deflection
+from fpsi_jax.run import io
+from fpsi_jax.run.simulate import simulate
 
 
 def test_plate_reference_is_K44():
@@ -17,14 +21,12 @@ def test_plate_reference_is_K44():
 def test_hydrostatic_plate_quick_within_5_percent():
     """Coarse plate (fluid 3.5 mm, 2 rows of 2.5 mm discs): the settled midpoint deflection
     within 5 % of K44 + Timoshenko shear for the as-built span and water."""
-    rec, = validate.CASES["hydrostatic_plate"](quick=True)
+    rec, = CASES["hydrostatic_plate"](quick=True)
     assert rec.passed, rec
 
 
 def test_gate_run_writes_the_coupling_and_reads_back(tmp_path):
-    from fpsi_jax import scenes
-    from fpsi_jax.simulate import simulate
-    sc = scenes.build("elastic_gate", dx=0.0035, d=0.0025, dx_boundary=0.0025, h0=0.004375)
+    sc = cases.build("elastic_gate", **GATE_COARSE)
     out = tmp_path / "gate.h5"
     res = simulate(sc, t_end=0.0012, output=str(out), every=0.0006, progress=False)
     run = io.read(out)
@@ -38,10 +40,10 @@ def test_gate_run_writes_the_coupling_and_reads_back(tmp_path):
 def test_elastic_gate_quick_lies_in_the_published_spread():
     """Coarse gate (fluid 3.5 mm, 2 columns of 2.5 mm discs, defaults): the peak tip ux and
     its time lie in the band spanned by the experiment (46 mm at 0.16 s) and the later codes
-    (Yang 2012 35.5 mm at 0.10 s … Khayyer 2018 42.7 mm at 0.115 s). The issue's target
+    (Yang 2012 35.5 mm at 0.10 s … Khayyer 2018 42.7 mm at 0.115 s). The case's target
     (peak within 15 %, time within 0.03 s) is checked at full resolution by
-    experiments/elastic_gate.py, and is not met on the time (README)."""
-    recs = validate.CASES["elastic_gate"](quick=True)
+    experiments/elastic_gate.py, and is not met on the time (docs/validation.md)."""
+    recs = CASES["elastic_gate"](quick=True)
     peak, when = recs[0].value, recs[1].value
     assert 0.033 <= peak <= 0.050, recs[0]
     assert 0.09 <= when <= 0.17, recs[1]

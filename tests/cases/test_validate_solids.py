@@ -1,7 +1,7 @@
-"""`fpsi validate` solid cases (fast versions) against the issue's figures."""
+"""`fpsi validate` solid cases (fast versions) against their analytic references."""
 import pytest
 
-from fpsi_jax import validate
+from fpsi_jax.cases import validate
 
 
 def test_collision_restitution_and_duration():
@@ -49,14 +49,14 @@ def test_cantilever_quick_matches_as_built_span(cantilever_quick):
 
 @pytest.mark.xfail(strict=True, reason=(
     "3.5 % against the nominal 1.6 mm (target 3 %): the clamp's last disc centre sits d/2 "
-    "behind x = 0, so the as-built span is L + d/2 (+2.4 % deflection); see README"))
+    "behind x = 0, so the as-built span is L + d/2 (+2.4 % deflection); see docs/validation.md"))
 def test_cantilever_quick_within_3_percent_of_nominal(cantilever_quick):
     assert cantilever_quick.passed, cantilever_quick.rel_error
 
 
 def test_cantilever_frequency_quick():
     """d = 2.5 mm: f1 within 5 % of Euler–Bernoulli for the as-built span (the full run
-    at d = 1.25 mm is compared with the nominal span: experiments / README)."""
+    at d = 1.25 mm is compared with the nominal span: experiments/, docs/validation.md)."""
     (r,) = validate.run(["cantilever_frequency"], quick=True)
     ref_b = r.params["reference_as_built_span"]
     assert abs(r.value - ref_b) / ref_b < 0.05

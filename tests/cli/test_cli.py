@@ -3,7 +3,8 @@ import json
 
 import pytest
 
-from fpsi_jax import cli, io
+from fpsi_jax import cli
+from fpsi_jax.run import io
 
 
 @pytest.mark.parametrize("argv, word", [
@@ -11,7 +12,7 @@ from fpsi_jax import cli, io
     (["run", "dam_break", "--set", "foo=1"], "unknown key 'foo'"),
     (["run", "dam_break", "--set", "dx=-1"], "dx = -1 out of range"),
     (["run", "dam_break", "--set", "eps_xsph=2"], "eps_xsph = 2 is out of range"),
-    (["run", "dam_break", "--set", "kernel=gauss"], "kernel must be one of"),
+    (["run", "dam_break", "--set", "kernel=gauss"], "kernel = 'gauss' is not a choice"),
     (["run", "dam_break", "--dt", "1"], "exceeds the stability bound"),
     (["run", "dam_break", "--t-end", "-1"], "t-end"),
     (["run", "dam_break", "--unsafe-dt"], "--unsafe-dt needs --dt"),
@@ -77,13 +78,13 @@ def test_bond_breaks_are_written(tmp_path):
 def test_unsafe_dt_runs_above_the_bound_and_stops_clearly_when_it_blows_up(tmp_path, capsys):
     """--unsafe-dt lets a step past the bound through; far past it the run stops with the
     diagnosis (exit 3) and the file keeps the good frames."""
-    from fpsi_jax import scenes
-    from fpsi_jax.simulate import setup
-    _, p = setup(scenes.build("hydrostatic_tank", dx=0.02))
+    from fpsi_jax import cases
+    from fpsi_jax.run.simulate import setup
+    _, p = setup(cases.build("hydrostatic_tank", dx=0.02))
     dt = float(p.dt)
     out = tmp_path / "t.h5"
     base = ["run", "hydrostatic_tank", "--set", "dx=0.02", "--quiet", "--unsafe-dt"]
-    # 1.5×: above the bound, below the tank's measured blow-up (1.94×, issue 7)
+    # 1.5×: above the bound, below the tank's measured blow-up (1.94×, experiments/stability.py)
     assert cli.main(base + ["--t-end", "0.05", "--dt", str(1.5 * dt)]) == 0
     rc = cli.main(base + ["--t-end", "0.1", "--dt", str(12 * dt), "--out", str(out)])
     assert rc == 3

@@ -1,0 +1,51 @@
+"""Observers: functions ``state -> small array`` that ``simulate(observe=...)`` records
+every step (inside the compiled chunk, so they must be JAX-traceable).
+
+``phase`` names a particle set of the state: ``"solid"`` (the DEM discs) or ``"fluid"``.
+An index set ``idx`` is an array of indices or a boolean mask over that phase.
+"""
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+
+def indices(idx) -> np.ndarray:
+    """``idx`` as integer indices (a boolean mask becomes the indices of its True entries)."""
+    idx = np.asarray(idx)
+    return np.flatnonzero(idx) if idx.dtype == bool else idx.astype(int)
+
+
+def mean_of(x, idx, axis: int | None = None):
+    """Mean position (numpy) of the points ``idx`` of ``x`` (n, 2): (2,), or the
+    component ``axis`` alone. The start value of :func:`mean_position`."""
+    sel = np.asarray(x)[indices(idx)]
+    return sel.mean(axis=0) if axis is None else sel[:, axis].mean()
+
+
+def mean_position(idx, axis: int | None = None, phase: str = "solid"):
+    """observe(state) = mean position of the particles ``idx`` of ``phase``: (2,), or the
+    component ``axis`` alone."""
+    ii = jnp.asarray(indices(idx))
+    if axis is None:
+        return lambda s: jnp.mean(getattr(s, phase).x[ii], axis=0)
+    return lambda s: jnp.mean(getattr(s, phase).x[ii, axis])
+
+
+def mean_displacement(x0, idx, axis: int | None = None, phase: str = "solid"):
+    """observe(state) = mean displacement of the particles ``idx`` of ``phase`` from their
+    mean in the start positions ``x0`` (n, 2): (2,), or the component ``axis`` alone."""
+    start = mean_of(x0, idx, axis)
+    pos = mean_position(idx, axis, phase)
+    return lambda s: pos(s) - jnp.asarray(start, getattr(s, phase).x.dtype)
+
+
+def max_coordinate(axis: int = 0, phase: str = "fluid"):
+    """observe(state) = the largest coordinate ``axis`` over ``phase`` (a surge front)."""
+    return lambda s: jnp.max(getattr(s, phase).x[:, axis])
+
+
+def max_speed(s):
+    """observe(state) = the largest particle speed of the phases the state has."""
+    return jnp.max(jnp.stack([jnp.max(jnp.linalg.norm(b.v, axis=1))
+                              for b in (s.fluid, s.solid) if b is not None]))
