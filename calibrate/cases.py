@@ -207,7 +207,7 @@ def evaluate(case: Case, values: dict | None, t_end: float, progress=False, para
     """Forward run of the case's scene with the fitted quantities at ``values`` (or with
     ``params`` as given) to ``t_end`` (host driver, same dt and sub-steps as the fit):
     (t, u (n, 2), Result)."""
-    from fpsi_jax.run.simulate import simulate
+    from fpsi_jax.run.driver import simulate
     pr = case.calibration.problem
     space = case.calibration.space
     if params is None:

@@ -22,7 +22,7 @@ import numpy as np
 import optax
 
 from fpsi_jax.model.errors import ParameterError
-from fpsi_jax.run.simulate import run_until_fits
+from fpsi_jax.run.driver import run_until_fits
 from fpsi_jax.solver import stages
 
 from .rollout import Problem

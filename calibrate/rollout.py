@@ -30,7 +30,7 @@ from fpsi_jax.model.errors import ParameterError
 from fpsi_jax.model.params import Params
 from fpsi_jax.model.scene import Scene
 from fpsi_jax.model.state import State
-from fpsi_jax.run.simulate import setup
+from fpsi_jax.run.driver import setup
 from fpsi_jax.solver import init, stages
 from fpsi_jax.solver import forward as stepper
 
@@ -113,7 +113,7 @@ def prepare(scene: Scene, t_end: float, observe: Callable, *, dt: float | None =
     when given, the parameter set a fit may reach that needs the smallest step (e.g. the
     upper bounds of the fitted stiffnesses), and is then fixed for every evaluation, so
     the fit neither recompiles nor steps past a stability bound. Every check of
-    :func:`fpsi_jax.run.simulate.setup` runs here, before anything is compiled."""
+    :func:`fpsi_jax.run.driver.setup` runs here, before anything is compiled."""
     if not t_end > 0:
         raise ParameterError(f"t_end = {t_end} out of range; allowed (0, inf)")
     base = params or scene.params

@@ -1,6 +1,6 @@
 """Shared by the benchmark scripts: a rollout chunk compiled per Physics and timed per run,
 the compile-and-warm-up step, and the timed chunks. Neighbour-list overflow is handled by
-``fpsi_jax.run.simulate.run_until_fits`` (grow the lists, reallocate, redo the chunk), as in
+``fpsi_jax.run.driver.run_until_fits`` (grow the lists, reallocate, redo the chunk), as in
 the driver."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import time
 import jax
 
 from fpsi_jax import solver
-from fpsi_jax.run.simulate import run_until_fits
+from fpsi_jax.run.driver import run_until_fits
 
 _run = jax.jit(solver.rollout, static_argnums=(0, 3, 4))
 

@@ -31,7 +31,7 @@ import statistics
 import jax
 
 from fpsi_jax import cases, solver
-from fpsi_jax.run.simulate import setup
+from fpsi_jax.run.driver import setup
 
 from _bench import compile_and_warm_up, timed_chunks
 

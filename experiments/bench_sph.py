@@ -25,7 +25,7 @@ import jax
 import jax.numpy as jnp
 
 from fpsi_jax import cases, solver
-from fpsi_jax.run.simulate import setup
+from fpsi_jax.run.driver import setup
 from fpsi_jax.solver import timestep
 
 from _bench import compile_and_warm_up, timed_chunks

@@ -98,7 +98,7 @@ def errors(T, Z, ref, t_max=T_MAX):
 def run_ours(dx):
     from fpsi_jax import cases
     from fpsi_jax.cases.dam_break import dam_break_front, front_observer
-    from fpsi_jax.run.simulate import simulate
+    from fpsi_jax.run.driver import simulate
     scene = cases.build("dam_break", dx=dx)
     a = scene.builder_kwargs["column_width"]
     g = float(-np.asarray(scene.params.gravity)[1])

@@ -29,7 +29,7 @@ from matplotlib.patches import Circle  # noqa: E402
 from fpsi_jax import cases  # noqa: E402
 from fpsi_jax.cases.registry import load_csv  # noqa: E402
 from fpsi_jax.run import io  # noqa: E402
-from fpsi_jax.run.simulate import simulate  # noqa: E402
+from fpsi_jax.run.driver import simulate  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 EXP = "zhang2009_dry_cylinder_collapse_center_of_mass_experiment.csv"

@@ -23,7 +23,7 @@ from fpsi_jax.cases.elastic_gate import GATE_COARSE as COARSE
 from fpsi_jax.cases.elastic_gate import gate_metrics, plot_gate, tip_displacement, tip_observer
 from fpsi_jax.model.errors import SimulationError
 from fpsi_jax.model.options import FsiMethod
-from fpsi_jax.run.simulate import simulate
+from fpsi_jax.run.driver import simulate
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from fpsi_jax.cases import overrides as ov
 from fpsi_jax.run import io
-from fpsi_jax.run.simulate import setup, simulate
+from fpsi_jax.run.driver import setup, simulate
 
 try:
     from two_phase_dam_break import snapshots

@@ -23,7 +23,7 @@ import numpy as np
 
 from fpsi_jax import cases
 from fpsi_jax.cases.elastic_gate import GATE_COARSE, gate_metrics, tip_displacement, tip_observer
-from fpsi_jax.run.simulate import simulate
+from fpsi_jax.run.driver import simulate
 from fpsi_jax.solver import timestep
 
 HERE = os.path.dirname(os.path.abspath(__file__))

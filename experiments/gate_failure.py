@@ -18,7 +18,7 @@ import numpy as np
 from fpsi_jax.cases import overrides as ov
 from fpsi_jax.cases.elastic_gate import GATE_COARSE
 from fpsi_jax.run import io
-from fpsi_jax.run.simulate import simulate
+from fpsi_jax.run.driver import simulate
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 

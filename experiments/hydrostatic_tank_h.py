@@ -21,7 +21,7 @@ import numpy as np
 
 from fpsi_jax import cases
 from fpsi_jax.physics import eos
-from fpsi_jax.run.simulate import simulate
+from fpsi_jax.run.driver import simulate
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 

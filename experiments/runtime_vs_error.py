@@ -142,15 +142,12 @@ def _plain(v):
 
 
 def worker(spec: dict) -> dict:
-    import importlib
-
     import numpy as np  # noqa: F401
     from fpsi_jax.cases import CASES   # importing the package registers every case
     from fpsi_jax.cases import overrides as ov
     from fpsi_jax.model.config import Physics
     from fpsi_jax.run import stability
-    # the module (fpsi_jax.run.simulate as an attribute is the function)
-    sim_mod = importlib.import_module("fpsi_jax.run.simulate")
+    from fpsi_jax.run import driver as sim_mod
 
     case, ovr = spec["case"], dict(spec["overrides"])
     base = {"variant": "tip"} if case == "cantilever" else {}

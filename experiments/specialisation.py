@@ -302,7 +302,7 @@ def prepare(scene, steps, dt=None, params=None, unsafe_dt=False, **opts):
     from _bench import compile_and_warm_up
 
     from fpsi_jax import solver
-    from fpsi_jax.run.simulate import run_until_fits, setup
+    from fpsi_jax.run.driver import run_until_fits, setup
     phys, prm = setup(scene, dt=dt, params=params, unsafe_dt=unsafe_dt, **opts)
     p = prm.as_arrays(solver.dtype(phys))
     st0 = solver.init_state(scene, phys, p)

@@ -30,7 +30,7 @@ from fpsi_jax.cases import build
 from fpsi_jax.cases.elastic_gate import GATE_COARSE
 from fpsi_jax.model.errors import SimulationError
 from fpsi_jax.run import stability
-from fpsi_jax.run.simulate import simulate
+from fpsi_jax.run.driver import simulate
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results")

@@ -21,7 +21,7 @@ import numpy as np
 
 from fpsi_jax.cases import overrides as ov
 from fpsi_jax.run import io
-from fpsi_jax.run.simulate import setup, simulate
+from fpsi_jax.run.driver import setup, simulate
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 

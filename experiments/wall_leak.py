@@ -18,7 +18,7 @@ import numpy as np
 from fpsi_jax import cases
 from fpsi_jax.model.errors import SimulationError
 from fpsi_jax.run import io
-from fpsi_jax.run.simulate import simulate
+from fpsi_jax.run.driver import simulate
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 T_END, EVERY, TANK = 0.45, 0.002, 0.5

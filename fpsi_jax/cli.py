@@ -32,7 +32,7 @@ def cmd_run(args):
     from . import cases
     from .cases import overrides as ov
     from .cases.plotting import default_plot
-    from .run.simulate import setup, simulate
+    from .run.driver import setup, simulate
 
     scene, phys = ov.build(args.scene, ov.parse_pairs(args.set))
     t_end = scene.t_end if args.t_end is None else args.t_end

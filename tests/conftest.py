@@ -38,7 +38,7 @@ def step_hlo():
 
     import jax.numpy as jnp
 
-    from fpsi_jax.run.simulate import setup
+    from fpsi_jax.run.driver import setup
     from fpsi_jax.solver import forward, init
 
     def lower(scene, dtype=jnp.float32, **opts):

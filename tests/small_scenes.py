@@ -2,7 +2,7 @@
 import jax.numpy as jnp
 
 from fpsi_jax import cases
-from fpsi_jax.run.simulate import setup
+from fpsi_jax.run.driver import setup
 from fpsi_jax.solver import init
 
 

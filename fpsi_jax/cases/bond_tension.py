@@ -9,7 +9,7 @@ from ..build import check_positive, disc_block
 from ..model.errors import ParameterError
 from ..model.params import BondParams, DemParams, Params
 from ..model.scene import BondBlock, Scene
-from ..run.simulate import simulate
+from ..run.driver import simulate
 from . import overrides as ov
 from .registry import Record, scene, validation
 

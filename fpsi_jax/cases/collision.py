@@ -11,7 +11,7 @@ from ..build import check_positive, disc_block
 from ..model.errors import require
 from ..model.params import DemParams, Params
 from ..model.scene import Scene
-from ..run.simulate import simulate
+from ..run.driver import simulate
 from ..solver import timestep
 from . import overrides as ov
 from .measure import crossings

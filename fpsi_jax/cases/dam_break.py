@@ -11,7 +11,7 @@ from ..build import (boundary_block, boundary_layers, check_positive, dam_speed,
 from ..model.params import Params
 from ..model.scene import Scene
 from ..run import observers
-from ..run.simulate import simulate
+from ..run.driver import simulate
 from . import overrides as ov
 from .plotting import draw_snapshot, pyplot
 from .registry import Record, load_csv, observer, plot, scene, validation

@@ -14,7 +14,7 @@ from ..model.errors import ParameterError
 from ..model.params import DemParams, Params
 from ..model.scene import Scene
 from ..run import observers
-from ..run.simulate import simulate
+from ..run.driver import simulate
 from . import overrides as ov
 from .plotting import pyplot, snapshot
 from .registry import Record, load_csv, observer, plot, scene, validation, variant

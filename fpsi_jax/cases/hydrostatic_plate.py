@@ -13,7 +13,7 @@ from ..build import (G, boundary_block, boundary_layers, check_positive, dam_spe
 from ..model.params import DemParams, Params
 from ..model.scene import Scene
 from ..run import observers
-from ..run.simulate import simulate
+from ..run.driver import simulate
 from . import overrides as ov
 from .registry import Record, scene, validation
 from .strips import bond_params, check_coupling, rows

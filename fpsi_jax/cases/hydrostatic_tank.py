@@ -11,7 +11,7 @@ from ..build import (boundary_block, boundary_layers, check_positive, dam_speed,
 from ..model.params import Params
 from ..model.scene import Scene
 from ..physics import eos
-from ..run.simulate import simulate
+from ..run.driver import simulate
 from . import overrides as ov
 from .registry import Record, scene, validation
 

@@ -7,7 +7,7 @@ import time
 import numpy as np
 
 from ..run import observers
-from ..run.simulate import simulate
+from ..run.driver import simulate
 
 
 def crossings(t, y, rising=False):

@@ -9,7 +9,7 @@ import numpy as np
 from ..build import check_positive, disc_block
 from ..model.params import DemParams, Params
 from ..model.scene import Scene, WallBlock
-from ..run.simulate import simulate
+from ..run.driver import simulate
 from . import overrides as ov
 from .registry import Record, scene, validation
 

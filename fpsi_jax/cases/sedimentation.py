@@ -14,7 +14,7 @@ from ..model.errors import ParameterError
 from ..model.params import DemParams, FpiParams, Params
 from ..model.scene import Scene
 from ..physics import fpi
-from ..run.simulate import simulate
+from ..run.driver import simulate
 from . import overrides as ov
 from .grains import check_voidage, fit_spacing, fluid_among_grains
 from .registry import Record, load_csv, scene, validation

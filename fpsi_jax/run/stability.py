@@ -31,7 +31,7 @@ from ..model.config import Physics
 from ..model.errors import SimulationError
 from ..model.scene import Scene
 from ..solver import timestep
-from .simulate import setup, simulate
+from .driver import setup, simulate
 
 
 @dataclasses.dataclass

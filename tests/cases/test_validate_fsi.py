@@ -8,7 +8,7 @@ from fpsi_jax.cases import CASES
 from fpsi_jax.cases.elastic_gate import GATE_COARSE
 from fpsi_jax.cases.hydrostatic_plate import plate_deflection
 from fpsi_jax.run import io
-from fpsi_jax.run.simulate import simulate
+from fpsi_jax.run.driver import simulate
 
 
 def test_plate_reference_is_K44():

@@ -79,7 +79,7 @@ def test_unsafe_dt_runs_above_the_bound_and_stops_clearly_when_it_blows_up(tmp_p
     """--unsafe-dt lets a step past the bound through; far past it the run stops with the
     diagnosis (exit 3) and the file keeps the good frames."""
     from fpsi_jax import cases
-    from fpsi_jax.run.simulate import setup
+    from fpsi_jax.run.driver import setup
     _, p = setup(cases.build("hydrostatic_tank", dx=0.02))
     dt = float(p.dt)
     out = tmp_path / "t.h5"

@@ -8,7 +8,7 @@ import h5py
 import numpy as np
 
 from fpsi_jax.run import io
-from fpsi_jax.run.simulate import simulate
+from fpsi_jax.run.driver import simulate
 
 
 def test_round_trip_and_metadata(tmp_path, tiny_tank):

@@ -12,7 +12,7 @@ import pytest
 from fpsi_jax import cases
 from fpsi_jax.model.errors import ParameterError, SimulationError
 from fpsi_jax.run import stability
-from fpsi_jax.run.simulate import setup, simulate
+from fpsi_jax.run.driver import setup, simulate
 
 
 def test_step_above_bound_is_refused_unless_unsafe():

@@ -21,7 +21,7 @@ from fpsi_jax.model.config import Physics
 from fpsi_jax.model.params import BondParams, DemParams, Params
 from fpsi_jax.model.scene import BondBlock, Scene
 from fpsi_jax.physics import dem, fpi, kernels
-from fpsi_jax.run.simulate import setup
+from fpsi_jax.run.driver import setup
 from fpsi_jax.solver import forward, init, timestep
 
 from ..finite_differences import fd_check

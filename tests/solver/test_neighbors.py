@@ -163,7 +163,7 @@ def test_jax_md_is_not_imported_before_a_list_is_built():
         "import sys\n"
         "from fpsi_jax import cases\n"
         "from fpsi_jax.model.errors import ParameterError\n"
-        "from fpsi_jax.run.simulate import setup\n"
+        "from fpsi_jax.run.driver import setup\n"
         "sc = cases.build('hydrostatic_tank', dx=0.02, depth=0.1, width=0.1)\n"
         "try:\n"
         "    setup(sc, dt=-1.0)\n"

@@ -19,7 +19,7 @@ from fpsi_jax.model.config import Physics
 from fpsi_jax.model.params import BondParams, DemParams, Params
 from fpsi_jax.model.scene import BondBlock, Scene, WallBlock
 from fpsi_jax.physics import dem
-from fpsi_jax.run.simulate import setup
+from fpsi_jax.run.driver import setup
 from fpsi_jax.solver import forward, init, stages
 
 from ..small_scenes import coarse_plate, grain_scene, init_x64

@@ -10,7 +10,7 @@ import pytest
 from fpsi_jax import cases
 from fpsi_jax.model.errors import ParameterError
 from fpsi_jax.model.config import Physics
-from fpsi_jax.run.simulate import setup
+from fpsi_jax.run.driver import setup
 from fpsi_jax.solver import timestep
 
 from ..small_scenes import coarse_plate

@@ -1,4 +1,4 @@
-"""The host driver (fpsi_jax.run.simulate): unstable runs stop with a diagnosis and leave a
+"""The host driver (fpsi_jax.run.driver): unstable runs stop with a diagnosis and leave a
 valid, finite file; frames and speed; dt overrides; an overflowing neighbour list is regrown
 and its chunk redone; the last short chunk and a second run reuse the compiled program."""
 import h5py
@@ -11,7 +11,7 @@ from fpsi_jax import cases
 from fpsi_jax.cases import overrides
 from fpsi_jax.model.errors import ParameterError, SimulationError
 from fpsi_jax.run import io
-from fpsi_jax.run.simulate import _advance, setup, simulate
+from fpsi_jax.run.driver import _advance, setup, simulate
 from fpsi_jax.solver import forward, init
 
 
