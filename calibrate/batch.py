@@ -64,7 +64,6 @@ def batched_losses(cal: Calibration, zs, shard: bool = True):
 def landscape(cal: Calibration, z_center, name: str, values, shard: bool = True):
     """Loss along one fitted quantity (physical ``values``), the others held at z_center:
     (values, losses)."""
-    k = cal.space.names.index(name)
     base_vals = dict(zip(cal.space.names, np.asarray(cal.space.values(
         jnp.asarray(z_center, cal.dtype)), float)))
     zs = np.stack([np.asarray(cal.space.z_of({**base_vals, name: float(v)}))

@@ -20,7 +20,6 @@ Gauss–Newton standard errors use the Jacobian of the stacked residuals.
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import jax
 import jax.numpy as jnp

@@ -6,8 +6,8 @@ import time
 
 import numpy as np
 
-from ..build import (boundary_block, boundary_layers, check_positive, dam_speed, domain,
-                     hydrostatic_fluid, lattice, sound_speed, sph_params, tank_walls)
+from ..build import (check_positive, dam_speed, hydrostatic_fluid, lattice, sound_speed,
+                     sph_params, tank)
 from ..model.params import Params
 from ..model.scene import Scene
 from ..run import observers
@@ -47,14 +47,11 @@ def dam_break(*, column_width=0.146, column_height=0.292, tank_width=0.584,
     sp = sph_params(rho0, c0, mu, dx, r_clump, eps_xsph, delta, alpha=alpha)
     fluid = hydrostatic_fluid(lattice(0.0, 0.0, column_width, column_height, dx), rho0, c0,
                               sp.gamma, column_height, dx=dx, h=h)
-    layers = boundary_layers(h, dxb)
-    xb = tank_walls(tank_width, tank_height, dxb, layers)
-    boundary = boundary_block(xb, rho0, dxb, h)
-    pad = layers * dxb + 2 * h
-    lo, hi = domain((0.0, 0.0), (tank_width, tank_height), (pad, pad, pad, 0.5 * tank_height))
+    box = tank(tank_width, tank_height, dxb, h, rho0)
+    lo, hi = box.domain(headroom=0.5)
     return Scene(
         name="dam_break", params=Params(sph=sp), domain_lo=lo, domain_hi=hi,
-        v_max=v_max, fluid=fluid, boundary=boundary, t_end=t_end,
+        v_max=v_max, fluid=fluid, boundary=box.boundary, t_end=t_end,
         options={"boundary_pressure": boundary_pressure, "delta_sph": delta_sph,
                  "artificial_viscosity": artificial_viscosity},
         builder_kwargs=dict(dx_boundary=dxb, h0=h, c0=c0))

@@ -7,9 +7,8 @@ import time
 
 import numpy as np
 
-from ..build import (boundary_block, boundary_layers, box_walls, check_positive, dam_speed,
-                     disc_block, domain, hydrostatic_fluid, lattice, sound_speed, sph_params,
-                     tank_walls, touching_pairs)
+from ..build import (boundary_block, check_positive, dam_speed, disc_block, hydrostatic_fluid,
+                     lattice, sound_speed, sph_params, tank, touching_pairs)
 from ..model.errors import ParameterError
 from ..model.params import DemParams, Params
 from ..model.scene import Scene
@@ -123,21 +122,20 @@ def elastic_gate(*, water_width=0.1, water_height=0.14, gate_length=0.079,
     fluid = hydrostatic_fluid(lattice(0.0, 0.0, water_width, water_height, dx), rho_water, c0,
                               sp.gamma, rows(water_height, dx, "water_height") * dx, dx=dx,
                               h=h0)
-    layers = boundary_layers(h0, dx_boundary)
-    xb = tank_walls(tank_length, tank_height, dx_boundary, layers)
+    box = tank(tank_length, tank_height, dx_boundary, h0, rho_water, dem_walls=True)
     n_wall = rows(gate_thickness, dx_boundary, "gate_thickness")
     wall = lattice(water_width, top_gate, n_wall * dx_boundary, tank_height - top_gate,
                    dx_boundary)
-    boundary = boundary_block(np.concatenate([xb, wall]), rho_water, dx_boundary, h0)
-    pad = layers * dx_boundary + 2 * h0
-    lo, hi = domain((0.0, 0.0), (tank_length, tank_height), (pad, pad, pad, 0.5 * tank_height))
+    boundary = boundary_block(np.concatenate([box.boundary.x, wall]), rho_water, dx_boundary,
+                              h0)
+    lo, hi = box.domain(headroom=0.5)
     return Scene(
         name="elastic_gate",
         params=Params(sph=sp, dem=DemParams(kn=k["kn"], ks=k["ks"], mu=0.0, alpha=alpha,
                                             damping=damping),
                       bond=bp),
         domain_lo=lo, domain_hi=hi, v_max=v_max, fluid=fluid, boundary=boundary, solid=blk,
-        bonds=bonds, walls=box_walls(0.0, 0.0, tank_length, tank_height), t_end=t_end,
+        bonds=bonds, walls=box.walls, t_end=t_end,
         options={"fsi": coupling, "boundary_pressure": "extrapolated", "delta_sph": True,
                  "artificial_viscosity": True},
         builder_kwargs=dict(c0=c0, tip=np.nonzero(tip)[0].tolist()))

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..build import (box_walls, check_positive, disc_block, domain, merge, square_packing,
-                     touching_pairs)
+from ..build import check_positive, clamp, disc_block, merge, square_packing, touching_pairs
 from ..model.errors import ParameterError
 from ..model.params import BondParams, FpiParams, Params
 from ..model.scene import Scene
@@ -41,28 +40,28 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
     tau_c = sigma_c if tau_c is None else tau_c
     check_positive(sigma_c=sigma_c, tau_c=tau_c, thickness=thickness,
                    d_structure=d_structure, rho_structure=rho_structure, ks=ks)
-    sp, fluid, grains, boundary, dem, v_max, c0, layers, n_grain = two_phase_parts(
+    parts = two_phase_parts(
         a, water_height, tank_length, tank_height, d, rho_grain, grain_mass, depth, dx,
         dx_boundary, h0, mu, c0, kn, ks, friction, beta_n, voidage, r_clump, eps_xsph,
         alpha_av, delta, eps_floor)
     ds = d_structure
     xs = square_packing(a, 0.0, thickness, water_height, ds)
-    wall = disc_block(xs, ds / 2, rho_structure, mass_model="lattice", packing="square",
-                      fixed=xs[:, 1] < ds)
+    wall = disc_block(xs, ds / 2, rho_structure, mass_model="lattice", packing="square")
+    clamp(wall, (-np.inf, -np.inf, np.inf, ds))          # its bottom row is fixed
     wall.structure = np.ones(wall.n, bool)
     wall.sph_volume = np.full(wall.n, ds * ds)
     bonds = touching_pairs(xs, ds / 2)
-    bonds.i, bonds.j = bonds.i + grains.n, bonds.j + grains.n
-    solid, _ = merge(grains, wall)
+    bonds.i, bonds.j = bonds.i + parts.grains.n, bonds.j + parts.grains.n
+    solid, _ = merge(parts.grains, wall)
     bp = BondParams(kn=kn / ds, ks=ks / ds, sigma_c=sigma_c, tau_c=tau_c)
-    pad = layers * dx_boundary + 2 * h0
-    lo, hi = domain((0.0, 0.0), (tank_length, tank_height), (pad, pad, pad, 0.5 * tank_height))
+    lo, hi = parts.tank.domain(headroom=0.5)
     return Scene(
         name="fpsi_failure",
-        params=Params(sph=sp, dem=dem, bond=bp, fpi=FpiParams()),
-        domain_lo=lo, domain_hi=hi, v_max=v_max, fluid=fluid, boundary=boundary, solid=solid,
-        bonds=bonds, walls=box_walls(0.0, 0.0, tank_length, tank_height), t_end=t_end,
+        params=Params(sph=parts.sph, dem=parts.dem, bond=bp, fpi=FpiParams()),
+        domain_lo=lo, domain_hi=hi, v_max=parts.v_max, fluid=parts.fluid,
+        boundary=parts.tank.boundary, solid=solid, bonds=bonds, walls=parts.tank.walls,
+        t_end=t_end,
         options={"fpi": True, "fsi": "extrapolated", "voidage": voidage,
                  "boundary_pressure": "extrapolated", "artificial_viscosity": True,
                  "delta_sph": True, "eps_floor": eps_floor},
-        builder_kwargs=dict(sigma_c=sigma_c, tau_c=tau_c, c0=c0, n_grain=n_grain))
+        builder_kwargs=dict(sigma_c=sigma_c, tau_c=tau_c, c0=parts.c0, n_grain=parts.n_grain))

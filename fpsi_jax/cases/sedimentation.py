@@ -7,9 +7,8 @@ import time
 
 import numpy as np
 
-from ..build import (boundary_block, boundary_layers, box_walls, check_positive, dam_speed,
-                     disc_block, domain, hydrostatic_fluid, lattice, sound_speed, sph_params,
-                     tank_walls)
+from ..build import (check_positive, dam_speed, disc_block, hydrostatic_fluid, lattice,
+                     sound_speed, sph_params, tank)
 from ..model.errors import ParameterError
 from ..model.params import DemParams, FpiParams, Params
 from ..model.scene import Scene
@@ -55,18 +54,14 @@ def sedimentation(*, width=0.02, height=0.06, d=0.0025, rho_grain=1250.0, rho_fl
     grain.grain = np.array([True])
     grain.structure = np.array([False])
     fluid = fluid_among_grains(fluid, grain.x, grain.radius, voidage)
-    layers = boundary_layers(h0, dx_boundary)
-    boundary = boundary_block(tank_walls(width, height, dx_boundary, layers), rho_fluid,
-                              dx_boundary, h0)
-    pad = layers * dx_boundary + 2 * h0
-    lo, hi = domain((0.0, 0.0), (width, height), (pad, pad, pad, 0.5 * height))
+    box = tank(width, height, dx_boundary, h0, rho_fluid, dem_walls=True, lid=True)
+    lo, hi = box.domain(headroom=0.5)
     return Scene(
         name="sedimentation",
         params=Params(sph=sp, dem=DemParams(kn=kn, ks=0.5 * kn, mu=friction, beta_n=beta_n,
                                             beta_s=beta_n), fpi=FpiParams()),
         domain_lo=lo, domain_hi=hi, v_max=v_max,
-        fluid=fluid, boundary=boundary, solid=grain,
-        walls=box_walls(0.0, 0.0, width, height, top=True), t_end=t_end,
+        fluid=fluid, boundary=box.boundary, solid=grain, walls=box.walls, t_end=t_end,
         options={"fpi": True, "voidage": voidage, "delta_sph": True,
                  "boundary_pressure": "extrapolated", "x64": x64},
         builder_kwargs=dict(dx=dx, c0=c0))

@@ -7,12 +7,13 @@ import math
 
 import numpy as np
 
-from ..build import (boundary_block, boundary_layers, box_walls, check_positive, dam_speed,
-                     disc_block, hex_packing, hydrostatic_fluid, lattice, merge, sound_speed,
-                     sph_params, square_packing, tank_walls)
+from dataclasses import dataclass
+
+from ..build import (Tank, check_positive, dam_speed, disc_block, hex_packing, hydrostatic_fluid,
+                     lattice, merge, move, sound_speed, sph_params, square_packing, tank)
 from ..model.errors import ParameterError
-from ..model.params import DemParams, FpiParams, Params
-from ..model.scene import Scene
+from ..model.params import DemParams, FpiParams, Params, SphParams
+from ..model.scene import FluidBlock, Scene, SolidBlock
 from .grains import check_voidage, fit_spacing, fluid_among_grains
 from .registry import scene
 
@@ -26,12 +27,25 @@ def grain_bed(a, d, n, floor=0.0):
     return rows[:n]
 
 
+@dataclass
+class TwoPhaseParts:
+    """The water column, its grain bed, the tank (with DEM walls) and the contact law of the
+    two-phase dam break."""
+
+    sph: SphParams
+    fluid: FluidBlock
+    grains: SolidBlock
+    tank: Tank
+    dem: DemParams
+    v_max: float
+    c0: float
+    n_grain: int
+
+
 def two_phase_parts(a, water_height, tank_length, tank_height, d, rho_grain, grain_mass,
                     depth, dx, dx_boundary, h0, mu, c0, kn, ks, friction, beta_n,
-                    voidage, r_clump, eps_xsph, alpha_av, delta, eps_floor):
-    """The water column, its grain bed, the tank and the contact law of the two-phase dam
-    break; returns (SphParams, fluid, grains, boundary, DemParams, v_max, c0, boundary
-    layers, number of grains)."""
+                    voidage, r_clump, eps_xsph, alpha_av, delta, eps_floor) -> TwoPhaseParts:
+    """The parts the two-phase dam break and ``fpsi_failure`` share (:class:`TwoPhaseParts`)."""
     check_positive(a=a, water_height=water_height, tank_length=tank_length,
                    tank_height=tank_height, d=d, rho_grain=rho_grain, grain_mass=grain_mass,
                    depth=depth, dx=dx, dx_boundary=dx_boundary, h0=h0, kn=kn)
@@ -52,11 +66,10 @@ def two_phase_parts(a, water_height, tank_length, tank_height, d, rho_grain, gra
     fluid = hydrostatic_fluid(lattice(0.0, 0.0, a, water_height, dx), 1000.0, c0, sp.gamma,
                               surface, dx=dx, h=h0)
     fluid = fluid_among_grains(fluid, grains.x, grains.radius, voidage, eps_floor)
-    layers = boundary_layers(h0, dx_boundary)
-    boundary = boundary_block(tank_walls(tank_length, tank_height, dx_boundary, layers),
-                              1000.0, dx_boundary, h0)
+    box = tank(tank_length, tank_height, dx_boundary, h0, 1000.0, dem_walls=True)
     dem = DemParams(kn=kn, ks=ks, mu=friction, beta_n=beta_n, beta_s=beta_n)
-    return sp, fluid, grains, boundary, dem, v_max, c0, layers, n_grain
+    return TwoPhaseParts(sph=sp, fluid=fluid, grains=grains, tank=box, dem=dem, v_max=v_max,
+                         c0=c0, n_grain=n_grain)
 
 
 @scene
@@ -92,27 +105,26 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
     pore fluid heavier than the pores hold, so the bed's pressure gradient is steeper than
     hydrostatic."""
     check_positive(gate_speed=gate_speed, gate_columns=gate_columns)
-    sp, fluid, grains, boundary, dem, v_max, c0, layers, n_grain = two_phase_parts(
+    parts = two_phase_parts(
         a, water_height, tank_length, tank_height, d, rho_grain, grain_mass, depth, dx,
         dx_boundary, h0, mu, c0, kn, ks, friction, beta_n, voidage, r_clump, eps_xsph,
         alpha_av, delta, eps_floor)
     dg = dx_boundary
     xgate = square_packing(a, 0.0, gate_columns * dg, water_height + 4 * dg, dg)
-    gate = disc_block(xgate, dg / 2, 1000.0, mass_model="lattice", packing="square",
-                      fixed=np.ones(xgate.shape[0], bool),
-                      v=np.tile([0.0, gate_speed], (xgate.shape[0], 1)))
+    gate = disc_block(xgate, dg / 2, 1000.0, mass_model="lattice", packing="square")
+    move(gate, lambda x: np.ones(len(x), bool), (0.0, gate_speed))   # lifted at gate_speed
     gate.structure = np.ones(gate.n, bool)
     gate.sph_volume = np.full(gate.n, dg * dg)
-    solid, _ = merge(grains, gate)
-    pad = layers * dx_boundary + 2 * h0
+    solid, _ = merge(parts.grains, gate)
+    pad = parts.tank.pad
     top = water_height + 4 * dg + gate_speed * t_end + 2 * h0
     return Scene(
         name="two_phase_dam_break",
-        params=Params(sph=sp, dem=dem, fpi=FpiParams()),
+        params=Params(sph=parts.sph, dem=parts.dem, fpi=FpiParams()),
         domain_lo=(-pad, -pad), domain_hi=(tank_length + pad, max(1.2 * tank_height, top)),
-        v_max=v_max, fluid=fluid, boundary=boundary, solid=solid,
-        walls=box_walls(0.0, 0.0, tank_length, tank_height), t_end=t_end,
+        v_max=parts.v_max, fluid=parts.fluid, boundary=parts.tank.boundary, solid=solid,
+        walls=parts.tank.walls, t_end=t_end,
         options={"fpi": True, "fsi": "extrapolated", "voidage": voidage,
                  "boundary_pressure": "extrapolated", "artificial_viscosity": True,
                  "delta_sph": True, "eps_floor": eps_floor},
-        builder_kwargs=dict(c0=c0, n_grain=n_grain))
+        builder_kwargs=dict(c0=parts.c0, n_grain=parts.n_grain))

@@ -11,7 +11,6 @@ import dataclasses
 import json
 import math
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 

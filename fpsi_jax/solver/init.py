@@ -23,7 +23,7 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
     dt_ = stages.dtype(phys)
     a = lambda v: jnp.asarray(v, dtype=dt_)
     z = jnp.zeros_like
-    fluid = boundary = nbrs = solid = bonds = walls = snbrs = fsi_state = fpi_state = None
+    fluid = boundary = solid = bonds = walls = snbrs = fsi_state = fpi_state = None
     if scene.fluid is not None:
         fl = scene.fluid
         b = scene.boundary

@@ -42,7 +42,7 @@ import jax.numpy as jnp
 from ..model.config import Physics
 from ..model.options import BoundaryPressure, FpiPressure, FsiMethod
 from ..model.params import Params
-from ..model.state import SolidState, State
+from ..model.state import State
 from ..physics import bonds as bonds_law
 from ..physics import boundary, dem, eos, fpi, fsi, kernels, sph
 from ..physics.pairs import pairs
