@@ -1,9 +1,10 @@
-"""Fitted parameter values, each with the data it was fitted to (the brief: a value tuned
-to one case's data lives here, never as a model default).
+"""Fitted parameter values, each with the data it was fitted to (a value tuned to one
+case's data lives here, never as a model default).
 
     from calibrate import fitted
+    from fpsi_jax import cases
     rec = fitted.load("elastic_gate_coarse")       # dict: values, scene keywords, data, …
-    scene = scenes.build("elastic_gate", **rec["scene_kwargs"])
+    scene = cases.build("elastic_gate", **rec["scene_kwargs"])
 
 Files are JSON beside this module, written by the experiment that fitted them.
 """

@@ -87,7 +87,7 @@ class Physics:
                            or 'mapped' (the equivalent 3D packing's; for grain beds); the
                            drag closure sees the 3D one either way (fpi.py)
       eps_floor            the fluid equations see max(ε, eps_floor) (the drag the true ε);
-                           builders of packed beds raise it (fpi_cases.py)
+                           builders of packed beds raise it (cases/two_phase_dam_break.py)
       fpi_pressure         the grains' buoyancy: 'archimedes' (ρ_f V_p |g|, default) or
                            'gradient' (−V_p ∇P of the SPH pressure); see fpi.py
       lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)

@@ -132,7 +132,8 @@ class WallBlock:
 
 @dataclass
 class Scene:
-    """Everything needed to start a run. Built by ``fpsi_jax.scenes.<name>(**kwargs)``.
+    """Everything needed to start a run, made from the public builders of
+    :mod:`fpsi_jax.build` (the shipped scenes: ``fpsi_jax.cases.build(name, **kwargs)``).
 
     domain_lo/domain_hi  rectangle every particle must stay inside (the neighbour grid)
     v_max                the scene's velocity scale (c0 = 10 v_max, time-step bound)

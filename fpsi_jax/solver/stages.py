@@ -36,6 +36,8 @@ returns the new force (docs/design.md says why impulse splitting was rejected).
 """
 from __future__ import annotations
 
+from typing import Any, NamedTuple
+
 import jax
 import jax.numpy as jnp
 
@@ -45,7 +47,7 @@ from ..model.params import Params
 from ..model.state import State
 from ..physics import bonds as bonds_law
 from ..physics import boundary, dem, eos, fpi, fsi, kernels, sph
-from ..physics.pairs import pairs
+from ..physics.pairs import Pairs, pairs
 from . import health, neighbors
 
 
@@ -239,124 +241,201 @@ def fluid_forces(phys: Physics, params: Params, state: State) -> State:
     return evaluate_fluid(phys, params, state, params.dt)
 
 
+class SphFamily(NamedTuple):
+    """The SPH neighbour family of one evaluation, in list order [fluid; boundary;
+    structure] (the grains have rows of their own at the end of the list, never columns).
+
+    x, v, h, m   (n_sph, …) positions, velocities (walls: 0), smoothing lengths, masses
+    idx          (n_sph, K) neighbour list of those rows (grain columns masked out)
+    idx_g        (n_grain, K) the grains' rows, or None
+    first_s      index of the first structure particle (n_fluid + n_boundary)
+    a_s          (n_structure, 2) the structure discs' acceleration, or None
+    x_p, v_p, r_p, vol_p   the grains' position, velocity, radius and area V_p = πR², or None
+    """
+    x: jax.Array
+    v: jax.Array
+    h: jax.Array
+    m: jax.Array
+    idx: jax.Array
+    idx_g: Any
+    first_s: int
+    a_s: Any
+    x_p: Any
+    v_p: Any
+    r_p: Any
+    vol_p: Any
+
+
+class NewLevel(NamedTuple):
+    """The fluid at the new time level: ρ' (intrinsic), h', P', and with grains the voidage
+    ε (floored for the fluid equations), ε unfloored (for the drag) and the grains' rows."""
+    rho: jax.Array
+    h: jax.Array
+    p: jax.Array
+    eps: Any = None
+    eps_raw: Any = None
+    rows: Any = None
+
+
+def sph_family(phys: Physics, state: State) -> SphFamily:
+    """Gather the SPH family's arrays of ``state`` (see :class:`SphFamily`)."""
+    f, b, fs, fp = state.fluid, state.boundary, state.fsi, state.fpi
+    nb = 0 if b is None else b.x.shape[0]
+    n_sph = phys.n_fluid + nb + (0 if fs is None else fs.idx.shape[0])
+    xs_ = vs_ = a_s = None
+    if fs is not None:
+        s = state.solid
+        xs_, vs_, a_s = s.x[fs.idx], s.v[fs.idx], s.acc[fs.idx]
+    idx, idx_g = state.nbrs.idx, None
+    x_p = v_p = r_p = vol_p = None
+    if fp is not None:
+        idx, idx_g = jnp.minimum(idx[:n_sph], n_sph), idx[n_sph:]  # grains leave the sums
+        s = state.solid
+        x_p, v_p, r_p = s.x[fp.idx], s.v[fp.idx], s.radius[fp.idx]
+        vol_p = jnp.pi * r_p * r_p        # V_p per unit thickness, like the disc's mass
+    return SphFamily(
+        x=_cat(f.x, _opt(b, "x"), xs_),
+        v=_cat(f.v, None if b is None else jnp.zeros_like(b.x), vs_),
+        h=_cat(f.h, _opt(b, "h"), _opt(fs, "h")), m=_cat(f.mass, _opt(b, "mass"), _opt(fs, "mass")),
+        idx=idx, idx_g=idx_g, first_s=phys.n_fluid + nb, a_s=a_s, x_p=x_p, v_p=v_p, r_p=r_p,
+        vol_p=vol_p)
+
+
+def _all(state: State, fluid_value, name: str):
+    """A fluid array followed by the boundary's and the structure's ``name`` array."""
+    return _cat(fluid_value, _opt(state.boundary, name), _opt(state.fsi, name))
+
+
+def new_level(phys: Physics, params: Params, state: State, fam: SphFamily, pr: Pairs,
+              dt) -> NewLevel:
+    """Continuity (K32) with δ-SPH, ρ' = ρ + dt Dρ/Dt, h' by K37, with grains the voidage at
+    the new positions (W42: the conserved density is ερ), and P' from the EOS (W46, K35)."""
+    sp, f, fp = params.sph, state.fluid, state.fpi
+    rho_c = f.rho if fp is None else fp.eps * f.rho
+    if fp is None:
+        drho = sph.density_rate(phys, sp, rho_c, pr)
+    else:
+        drho = sph.density_rate(phys, sp, rho_c, pr, fp.eps, _all(state, f.rho, "rho"))
+    rho_c_new = rho_c + dt * drho
+    h_new = f.h
+    if phys.variable_h:
+        with jax.named_scope("sph.variable_h"):
+            h_new = f.h + dt * sph.smoothing_length_rate(f.h, rho_c, drho)
+    eps = eps_raw = rows = None
+    rho_new = rho_c_new
+    if fp is not None:
+        with jax.named_scope("fpi.voidage"):
+            rows = fpi.grain_rows(kernels.get(phys.kernel), f.x, f.h, f.mass / rho_c_new,
+                                  fam.x_p, fam.idx_g, phys.n_fluid)
+            eps_raw = fpi.fluid_voidage(rows.w, fam.vol_p, rows.idx, rows.valid, phys.n_fluid,
+                                        phys.voidage)
+            eps = jnp.maximum(eps_raw, phys.eps_floor)
+        rho_new = rho_c_new / eps
+    with jax.named_scope("sph.eos"):
+        p_new = eos.pressure(rho_new, sp.rho0, sp.c0, sp.gamma)
+    return NewLevel(rho=rho_new, h=h_new, p=p_new, eps=eps, eps_raw=eps_raw, rows=rows)
+
+
+def wall_pressure(phys: Physics, params: Params, state: State, fam: SphFamily,
+                  lvl: NewLevel) -> State:
+    """The pressure (and density) of the fixed boundary particles (extrapolated mode, Adami
+    et al. 2012) and of the structure particles (the coupling's rule, fsi.py)."""
+    sp, nf, g = params.sph, phys.n_fluid, jnp.asarray(params.gravity)
+    kern, b, fs = kernels.get(phys.kernel), state.boundary, state.fsi
+    nb = fam.first_s - nf
+    if b is not None and phys.boundary_pressure is BoundaryPressure.EXTRAPOLATED:
+        with jax.named_scope("boundary.extrapolated"):
+            pb = boundary.extrapolated_pressure(
+                nf, kern, g, fam.x, fam.h, _cat(lvl.rho, b.rho, _opt(fs, "rho")),
+                _cat(lvl.p, b.p, _opt(fs, "p")), fam.idx[nf:nf + nb])
+        b = b.replace(p=pb, rho=eos.density(pb, sp.rho0, sp.c0, sp.gamma))
+    if fs is not None and phys.fsi in (FsiMethod.EXTRAPOLATED,
+                                       FsiMethod.PRESSURE_APPROXIMATION):
+        rho_all = _cat(lvl.rho, _opt(b, "rho"), fs.rho)
+        p_all = _cat(lvl.p, _opt(b, "p"), fs.p)
+        idx_s = fam.idx[fam.first_s:fam.first_s + fs.idx.shape[0]]
+        if phys.fsi is FsiMethod.EXTRAPOLATED:
+            with jax.named_scope("fsi.extrapolated"):
+                ps = boundary.extrapolated_pressure(nf, kern, g, fam.x, fam.h, rho_all, p_all,
+                                                    idx_s, acc_b=fam.a_s, first=fam.first_s)
+        else:
+            with jax.named_scope("fsi.pressure_approximation"):
+                ps = fsi.approximate_pressure(kern, nf, fam.x, fam.h, rho_all, p_all, fam.m,
+                                              idx_s)
+        fs = fs.replace(p=ps, rho=eos.density(ps, sp.rho0, sp.c0, sp.gamma))
+    return state.replace(boundary=b, fsi=fs)
+
+
+def fluid_momentum(phys: Physics, params: Params, state: State, pr: Pairs,
+                   lvl: NewLevel) -> State:
+    """The fluid's acceleration and XSPH correction (sph.momentum_rate: W43, K34–K39) at the
+    new level, and the reaction of the fluid–structure pairs on the structure (fsi.py)."""
+    fs, b, first = state.fsi, state.boundary, phys.n_fluid + phys.n_boundary
+    bracket = None
+    if fs is not None and phys.fsi is FsiMethod.PRESSURE_GRADIENT:
+        n_s = phys.n_structure
+        bracket = (lambda coef, p_i, rho_i, rho_j, ix:
+                   fsi.pressure_gradient_bracket(coef, p_i, rho_i, rho_j, ix, first, n_s))
+    eps_all = None
+    if lvl.eps is not None:
+        eps_all = _cat(lvl.eps, None if b is None else jnp.ones_like(b.rho),
+                       None if fs is None else jnp.ones_like(fs.rho))
+    acc, xs, pair = sph.momentum_rate(
+        phys, kernels.get(phys.kernel), params.sph, jnp.asarray(params.gravity),
+        _all(state, lvl.rho, "rho"), _all(state, lvl.p, "p"), pr, with_pairs=fs is not None,
+        eps=eps_all, structure_bracket=bracket)
+    if fs is not None:
+        with jax.named_scope("fsi.reaction"):
+            fs = fs.replace(force=fsi.reaction(pair, state.fluid.mass, pr.idx, first,
+                                               phys.n_structure))
+    return state.replace(fluid=state.fluid.replace(acc=acc, xsph=xs), fsi=fs)
+
+
+def grain_forces(phys: Physics, params: Params, state: State, fam: SphFamily,
+                 lvl: NewLevel) -> State:
+    """The fluid's force on the grains, drag (W19–W23) and buoyancy (fpi.py), and its
+    reaction on the fluid by kernel weights (W47–W48)."""
+    sp, f, b, fp = params.sph, state.fluid, state.boundary, state.fpi
+    g = jnp.asarray(params.gravity)
+    kern, rows = kernels.get(phys.kernel), lvl.rows
+    with jax.named_scope("fpi.drag"):
+        eps_p, u_f, wet, drag = fpi.grain_drag(rows, lvl.eps_raw, f.v, fam.v_p, fam.vol_p,
+                                               2.0 * fam.r_p, sp.rho0, sp.mu, phys.voidage)
+    with jax.named_scope("fpi.buoyancy"):
+        if phys.fpi_pressure is FpiPressure.ARCHIMEDES:
+            lift = -(sp.rho0 * fam.vol_p)[:, None] * g[None, :]
+        else:
+            lift = fpi.pressure_force(rows, lvl.p, fam.vol_p)
+        force = drag + jnp.where((wet > 0)[:, None], lift, 0.0)
+    with jax.named_scope("fpi.reaction"):
+        wall = None if b is None else fpi.wall_share(kern, b.x, b.h, b.mass / b.rho, fam.x_p,
+                                                     fam.idx_g, phys.n_fluid)
+        acc = f.acc + fpi.reaction_acceleration(rows, force, f.mass, wall)
+    return state.replace(fluid=f.replace(acc=acc),
+                         fpi=fp.replace(eps=lvl.eps, eps_p=eps_p, u_f=u_f, wet=wet,
+                                        force=force))
+
+
 def evaluate_fluid(phys: Physics, params: Params, state: State, dt) -> State:
     """One SPH evaluation at the fluid's x and v (v½ in a step): ρ' = ρ + dt Dρ/Dt (dt = 0:
-    no drift), h', P', then a' and δv_XSPH; the boundary pressure, and with couplings the
-    structure's pressure and the fluid's force on the structure discs (fsi.py) and on the
-    grains (fpi.py).
+    no drift), h', P', the walls' and the structure's pressure, then a' and δv_XSPH and the
+    fluid's force on the structure discs (fsi.py) and on the grains (fpi.py).
 
     With grains the conserved density is ερ (W42): continuity advances ε_old ρ, the voidage
     ε at the new positions turns it back into the intrinsic ρ that the EOS, the viscosity
     and the walls see, the pressure bracket carries ε (``sph.voidage_bracket``), and the
     grains' drag and buoyancy go back to the fluid by kernel weights (W47–W48). Without
     grains none of this is traced."""
-    sp, kern, nf = params.sph, kernels.get(phys.kernel), phys.n_fluid
-    g = jnp.asarray(params.gravity)
-    f, b, fs, fp = state.fluid, state.boundary, state.fsi, state.fpi
-    nb = 0 if b is None else b.x.shape[0]
-    n_sph = nf + nb + (0 if fs is None else fs.idx.shape[0])
-    if fs is not None:
-        s = state.solid
-        xs_, vs_, as_ = s.x[fs.idx], s.v[fs.idx], s.acc[fs.idx]
-    else:
-        xs_ = vs_ = as_ = None
-    idx = state.nbrs.idx
-    rho = f.rho
-    if fp is not None:
-        idx, idx_g = jnp.minimum(idx[:n_sph], n_sph), idx[n_sph:]  # grains leave the sums
-        rho_c = fp.eps * rho
-        x_p, v_p, r_p = (state.solid.x[fp.idx], state.solid.v[fp.idx],
-                         state.solid.radius[fp.idx])
-        vol_p = jnp.pi * r_p * r_p        # V_p per unit thickness, like the disc's mass
-    else:
-        rho_c = rho
-    all_x = _cat(f.x, _opt(b, "x"), xs_)
-    all_h = _cat(f.h, _opt(b, "h"), _opt(fs, "h"))
-    all_m = _cat(f.mass, _opt(b, "mass"), _opt(fs, "mass"))
-    pr = pairs(kern, nf, all_x, _cat(f.v, None if b is None else jnp.zeros_like(b.x), vs_),
-               all_h, all_m, _cat(rho_c, _opt(b, "rho"), _opt(fs, "rho")), idx[:nf])
-
-    # density and smoothing length at the new time level
-    if fp is None:
-        drho = sph.density_rate(phys, sp, rho_c, pr)
-    else:
-        drho = sph.density_rate(phys, sp, rho_c, pr, fp.eps,
-                                _cat(rho, _opt(b, "rho"), _opt(fs, "rho")))
-    rho_c_new = rho_c + dt * drho
-    if phys.variable_h:
-        with jax.named_scope("sph.variable_h"):
-            h_new = f.h + dt * sph.smoothing_length_rate(f.h, rho_c, drho)
-    else:
-        h_new = f.h
-    if fp is not None:
-        with jax.named_scope("fpi.voidage"):
-            rows = fpi.grain_rows(kern, f.x, f.h, f.mass / rho_c_new, x_p, idx_g, nf)
-            eps_raw = fpi.fluid_voidage(rows.w, vol_p, rows.idx, rows.valid, nf, phys.voidage)
-            eps = jnp.maximum(eps_raw, phys.eps_floor)
-        rho_new = rho_c_new / eps
-    else:
-        rho_new = rho_c_new
-    with jax.named_scope("sph.eos"):
-        p_new = eos.pressure(rho_new, sp.rho0, sp.c0, sp.gamma)
-
-    # pressure of the walls and of the structure
-    if b is not None and phys.boundary_pressure is BoundaryPressure.EXTRAPOLATED:
-        with jax.named_scope("boundary.extrapolated"):
-            pb = boundary.extrapolated_pressure(
-                nf, kern, g, all_x, all_h, _cat(rho_new, b.rho, _opt(fs, "rho")),
-                _cat(p_new, b.p, _opt(fs, "p")), idx[nf:nf + nb])
-        b = b.replace(p=pb, rho=eos.density(pb, sp.rho0, sp.c0, sp.gamma))
-    if fs is not None and phys.fsi in (FsiMethod.EXTRAPOLATED,
-                                       FsiMethod.PRESSURE_APPROXIMATION):
-        rho_all = _cat(rho_new, _opt(b, "rho"), fs.rho)
-        p_all = _cat(p_new, _opt(b, "p"), fs.p)
-        if phys.fsi is FsiMethod.EXTRAPOLATED:
-            with jax.named_scope("fsi.extrapolated"):
-                ps = boundary.extrapolated_pressure(nf, kern, g, all_x, all_h, rho_all, p_all,
-                                                    idx[nf + nb:n_sph], acc_b=as_,
-                                                    first=nf + nb)
-        else:
-            with jax.named_scope("fsi.pressure_approximation"):
-                ps = fsi.approximate_pressure(kern, nf, all_x, all_h, rho_all, p_all, all_m,
-                                              idx[nf + nb:n_sph])
-        fs = fs.replace(p=ps, rho=eos.density(ps, sp.rho0, sp.c0, sp.gamma))
-
-    # momentum
-    bracket = None
-    if fs is not None and phys.fsi is FsiMethod.PRESSURE_GRADIENT:
-        first, n_s = nf + nb, phys.n_structure
-        bracket = (lambda coef, p_i, rho_i, rho_j, ix:
-                   fsi.pressure_gradient_bracket(coef, p_i, rho_i, rho_j, ix, first, n_s))
-    eps_all = None
-    if fp is not None:
-        eps_all = _cat(eps, None if b is None else jnp.ones_like(b.rho),
-                       None if fs is None else jnp.ones_like(fs.rho))
-    acc, xs, pair = sph.momentum_rate(
-        phys, kern, sp, g, _cat(rho_new, _opt(b, "rho"), _opt(fs, "rho")),
-        _cat(p_new, _opt(b, "p"), _opt(fs, "p")), pr, with_pairs=fs is not None,
-        eps=eps_all, structure_bracket=bracket)
-    if fs is not None:
-        with jax.named_scope("fsi.reaction"):
-            fs = fs.replace(force=fsi.reaction(pair, f.mass, pr.idx, nf + nb, phys.n_structure))
-
-    # the grains: drag, buoyancy and their reaction on the fluid
-    if fp is not None:
-        with jax.named_scope("fpi.drag"):
-            eps_p, u_f, wet, drag = fpi.grain_drag(rows, eps_raw, f.v, v_p, vol_p, 2.0 * r_p,
-                                                   sp.rho0, sp.mu, phys.voidage)
-        with jax.named_scope("fpi.buoyancy"):
-            if phys.fpi_pressure is FpiPressure.ARCHIMEDES:
-                lift = -(sp.rho0 * vol_p)[:, None] * g[None, :]
-            else:
-                lift = fpi.pressure_force(rows, p_new, vol_p)
-            force = drag + jnp.where((wet > 0)[:, None], lift, 0.0)
-        with jax.named_scope("fpi.reaction"):
-            wall = None if b is None else fpi.wall_share(kern, b.x, b.h, b.mass / b.rho, x_p,
-                                                         idx_g, nf)
-            acc = acc + fpi.reaction_acceleration(rows, force, f.mass, wall)
-        fp = fp.replace(eps=eps, eps_p=eps_p, u_f=u_f, wet=wet, force=force)
-    return state.replace(fluid=f.replace(rho=rho_new, h=h_new, acc=acc, xsph=xs), boundary=b,
-                         fsi=fs, fpi=fp)
+    fam = sph_family(phys, state)
+    rho_c = state.fluid.rho if state.fpi is None else state.fpi.eps * state.fluid.rho
+    pr = pairs(kernels.get(phys.kernel), phys.n_fluid, fam.x, fam.v, fam.h, fam.m,
+               _all(state, rho_c, "rho"), fam.idx[:phys.n_fluid])
+    lvl = new_level(phys, params, state, fam, pr, dt)
+    state = wall_pressure(phys, params, state, fam, lvl)
+    state = fluid_momentum(phys, params, state, pr, lvl)
+    if state.fpi is not None:
+        state = grain_forces(phys, params, state, fam, lvl)
+    return state.replace(fluid=state.fluid.replace(rho=lvl.rho, h=lvl.h))
 
 
 def fluid_kick(phys: Physics, params: Params, state: State) -> State:
