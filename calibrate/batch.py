@@ -17,6 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
+from fpsi_jax.model.errors import ParameterError
+
 from .fit import Calibration
 
 
@@ -64,6 +66,9 @@ def batched_losses(cal: Calibration, zs, shard: bool = True):
 def landscape(cal: Calibration, z_center, name: str, values, shard: bool = True):
     """Loss along one fitted quantity (physical ``values``), the others held at z_center:
     (values, losses)."""
+    if name not in cal.space.names:
+        raise ParameterError(f"{name!r} is not a fitted quantity; fitted: "
+                             f"{', '.join(cal.space.names)}")
     base_vals = dict(zip(cal.space.names, np.asarray(cal.space.values(
         jnp.asarray(z_center, cal.dtype)), float)))
     zs = np.stack([np.asarray(cal.space.z_of({**base_vals, name: float(v)}))
