@@ -32,6 +32,7 @@ from ..model.state import STATUS_CODES, State
 from ..physics import dem
 from ..solver import init, neighbors, stages, timestep
 from ..solver import forward as stepper
+from . import probes as probing
 from .io import Writer
 
 
@@ -48,6 +49,12 @@ class Result:
     observations: object = None
     output: str | None = None
     first_chunk_steps: int = 0
+    probes: dict | None = None       # probe name -> (n_steps, k) values after every step
+
+    @property
+    def times(self) -> np.ndarray:
+        """Times after each step (the rows of ``observations`` and ``probes``)."""
+        return (np.arange(self.n_steps) + 1) * float(self.params.dt)
 
     @property
     def particle_steps_per_s(self) -> float:
@@ -178,7 +185,7 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
              every: float | None = None, progress: bool = True, dt: float | None = None,
              params: Params | None = None, observe: Callable | None = None,
              chunk_steps: int | None = None, state: State | None = None,
-             unsafe_dt: bool = False, **physics_overrides) -> Result:
+             unsafe_dt: bool = False, probes=None, **physics_overrides) -> Result:
     """Run ``scene`` to ``t_end`` (default scene.t_end) in compiled chunks.
 
     output      HDF5 path (an .xdmf sidecar is written next to it); None: no file
@@ -186,6 +193,9 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
     dt          time step; default: the stability bound; larger than the bound is refused
                 unless ``unsafe_dt`` (stress tests)
     observe     state → small pytree recorded every step (returned stacked over steps)
+    probes      :class:`~fpsi_jax.run.probes.Probe` list recorded every step: returned in
+                ``Result.probes``, written to ``/probes`` of the output file and to
+                ``<output>_probes.csv`` (up to the last good chunk if the run goes unstable)
     physics_overrides   Physics options (e.g. delta_sph=True, x64=True)
     """
     t_end = float(scene.t_end if t_end is None else t_end)
@@ -200,8 +210,13 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
         raise ParameterError(f"every = {every} out of range; allowed (0, t_end]")
     chunk = chunk_steps or max(1, int(round(every / dt)))
 
+    probes = probing.check_names(probes)
+    user_observe = observe
+    if probes:
+        record = probing.observer(probes)
+        observe = lambda s: (None if user_observe is None else user_observe(s), record(s))
     state = init.init_state(scene, phys, p) if state is None else state
-    writer = Writer(output, scene, phys, params) if output else None
+    writer = Writer(output, scene, phys, params, probes) if output else None
     if writer:
         writer.write(state)
     bar = None
@@ -225,9 +240,11 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
                 compile_s = time.perf_counter() - t0   # compile + first chunk
                 first = n
             obs = jax.tree_util.tree_map(lambda a: a[:n], c.result)   # rows past n unused
-            done += n
             if observe is not None:
                 obs_chunks.append(jax.tree_util.tree_map(np.asarray, obs))
+            if writer and probes:
+                writer.write_probes((np.arange(done, done + n) + 1) * dt, obs_chunks[-1][1])
+            done += n
             if writer:
                 writer.write(state)
             if bar:
@@ -242,11 +259,23 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
             bar.close()
         if writer:
             writer.close()
+        if output and probes:
+            probing.write_csv(probing.csv_path(output), probes,
+                              (np.arange(done) + 1) * dt, _stack(obs_chunks, probes)[1])
     wall = time.perf_counter() - t0
-    observations = None
+    observations, probe_values = None, None
     if obs_chunks:
         observations = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *obs_chunks)
+        if probes:
+            observations, probe_values = observations
     return Result(state=state, physics=phys, params=params, n_steps=done, wall_s=wall,
                   compile_s=compile_s, rebuilds=int(state.status.rebuilds),
                   reallocations=reallocs, observations=observations, output=output,
-                  first_chunk_steps=first)
+                  first_chunk_steps=first, probes=probe_values)
+
+
+def _stack(obs_chunks, probes):
+    """(user observations, {probe: (n, k)}) of the chunks so far (empty arrays if none)."""
+    if not obs_chunks:
+        return None, {p.name: np.zeros((0, len(p.components))) for p in probes}
+    return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *obs_chunks)

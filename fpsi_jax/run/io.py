@@ -14,6 +14,8 @@ Layout of a file::
     /fluid/eps (T,n)                           fluid voidage, with grains (fpi)
     /fpi/{idx (g,), force (T,g,2), eps_p (T,g)}  grains: disc index, the fluid's force on
                                                each (buoyancy + drag) and their voidage
+    /probes/{time (S,), <name> (S,k)}           every probe after every step (run.probes);
+                                               attrs: components and units per probe
     attrs: scene, physics, params (JSON), fpsi_version, status
 
 Datasets are extendible along the time axis and the file is flushed after every frame, so
@@ -39,7 +41,7 @@ FLUID_FIELDS = ("x", "v", "rho", "p", "h")
 class Writer:
     """Append frames of a run to an HDF5 file and keep its XDMF sidecar up to date."""
 
-    def __init__(self, path, scene, phys, params):
+    def __init__(self, path, scene, phys, params, probes=()):
         os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
         self.path = str(path)
         self.f = h5py.File(self.path, "w")
@@ -52,6 +54,19 @@ class Writer:
         self.n_solid, self.n_bonds = phys.n_solid, phys.n_bonds
         self._make("time", (), np.float64)
         self._make("step", (), np.int64)
+        self.probes = list(probes or ())
+        if self.probes:
+            from .probes import describe
+            g = self.f.create_group("probes")
+            g.attrs["probes"] = describe(self.probes)
+            g.create_dataset("time", shape=(0,), maxshape=(None,), dtype=np.float64,
+                             chunks=(4096,))
+            for pr in self.probes:
+                k = len(pr.components)
+                d = g.create_dataset(pr.name, shape=(0, k), maxshape=(None, k),
+                                     dtype=np.float64, chunks=(4096, k))
+                d.attrs["components"] = json.dumps(list(pr.components))
+                d.attrs["units"] = json.dumps(list(pr.units))
         nf = self.n_fluid
         if nf:
             for k, shape in (("x", (nf, 2)), ("v", (nf, 2)), ("rho", (nf,)), ("p", (nf,)),
@@ -127,6 +142,24 @@ class Writer:
             if not np.all(np.isfinite(v)):
                 raise ValueError(f"refusing to write non-finite {k} to {self.path}")
         return data
+
+    def write_probes(self, times, values: dict):
+        """Append the probe rows of one chunk (``values``: name → (n, k)); refuses
+        non-finite values."""
+        g = self.f["probes"]
+        n0, n = g["time"].shape[0], len(times)
+        rows = {}
+        for pr in self.probes:
+            v = np.asarray(values[pr.name], float).reshape(n, -1)
+            if not np.all(np.isfinite(v)):
+                raise ValueError(f"refusing to write non-finite probe {pr.name!r} to "
+                                 f"{self.path}")
+            rows[pr.name] = v
+        g["time"].resize(n0 + n, axis=0)
+        g["time"][n0:] = np.asarray(times, float)
+        for name, v in rows.items():
+            g[name].resize(n0 + n, axis=0)
+            g[name][n0:] = v
 
     def write(self, state):
         """Append one frame; refuses non-finite data (the driver checks before calling)."""
@@ -265,6 +298,7 @@ class Run:
     message: str
     fsi: dict | None = None
     fpi: dict | None = None
+    probes: dict | None = None     # name -> (S, k) after every step, and 'time' (S,)
 
     @property
     def frames(self) -> int:
@@ -289,4 +323,6 @@ def read(path) -> Run:
                    params=json.loads(a["params"]), status=str(a.get("status", "")),
                    message=str(a.get("message", "")),
                    fsi={k: f[f"fsi/{k}"][:] for k in f["fsi"]} if "fsi" in f else {},
-                   fpi={k: f[f"fpi/{k}"][:] for k in f["fpi"]} if "fpi" in f else {})
+                   fpi={k: f[f"fpi/{k}"][:] for k in f["fpi"]} if "fpi" in f else {},
+                   probes=({k: f[f"probes/{k}"][:] for k in f["probes"]}
+                           if "probes" in f else {}))

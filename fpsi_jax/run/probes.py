@@ -1,0 +1,255 @@
+"""Probes: named measurements recorded every step inside the compiled rollout.
+
+A :class:`Probe` is a pure function ``state -> (k,) array`` with a name, component names and
+units. ``simulate(scene, probes=[...])`` records each one after every step (not from the
+output frames), returns them in ``Result.probes`` (name → (n_steps, k) array), writes
+them to the HDF5 file under ``/probes/<name>`` and to ``<output>_probes.csv``.
+
+    tip = probes.displacement("tip", idx)              # mean displacement of discs idx
+    res = simulate(scene, probes=[tip, probes.front("front", scene)])
+    res.probes["tip"][:, 0]                            # u_x after every step [m]
+
+Index sets are resolved on the host when the probe is made (from the scene's start
+positions); the functions only gather and reduce, so they run on any device. Forces and
+moments are per metre of out-of-plane thickness (the 2D model's unit depth).
+
+Kinds (the scene file's ``[[probe]] kind``):
+
+==============  ========================================================  ==============
+kind            what                                                      components
+==============  ========================================================  ==============
+displacement    mean displacement of a set of discs from its start        ux, uy [m]
+force           the fluid's force on a set of structure discs and its     Fx, Fy [N/m],
+                moment about a point (Σ (x_i − c) × F_i)                  M [N m/m]
+pressure        fluid pressure at a point: Shepard interpolation          p [Pa]
+                Σ P_j W_j V_j / Σ W_j V_j, V_j = m_j/ρ_j (0 when dry)
+water_level     free-surface height at x: the highest fluid particle      level [m]
+                within Δp/2 of x, plus Δp/2 (``floor`` when dry)
+front           the fluid's leading edge along ±x: max (min) x ± Δp/2      x [m]
+bed_profile     top of a grain bed in ``bins`` columns between x0 and     z_0 … [m]
+                x1: max (y + R) of the grains in each (``floor``: empty)
+broken_bonds    number of broken bonds (of a set of discs, or all)        n [-]
+==============  ========================================================  ==============
+"""
+from __future__ import annotations
+
+import csv
+import json
+import os
+from dataclasses import dataclass, field
+from typing import Callable
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..model.errors import ParameterError
+from ..physics import eos, kernels
+
+KINDS = ("displacement", "force", "pressure", "water_level", "front", "bed_profile",
+         "broken_bonds")
+
+
+@dataclass(frozen=True, eq=False)
+class Probe:
+    """A named measurement: ``fn(state) -> (k,)`` with ``components`` and their ``units``;
+    ``spec`` describes it for the output files (kind and resolved settings)."""
+
+    name: str
+    kind: str
+    fn: Callable
+    components: tuple
+    units: tuple
+    spec: dict = field(default_factory=dict)
+
+    def __call__(self, state):
+        return jnp.atleast_1d(self.fn(state))
+
+    def columns(self) -> list[str]:
+        """CSV column headers, ``<name>.<component> [<unit>]``."""
+        return [f"{self.name}.{c} [{u}]" for c, u in zip(self.components, self.units)]
+
+
+def _indices(idx, n, what) -> np.ndarray:
+    idx = np.asarray(idx)
+    idx = np.flatnonzero(idx) if idx.dtype == bool else idx.astype(int).ravel()
+    if idx.size == 0:
+        raise ParameterError(f"{what}: the probe selects no particle")
+    if idx.min() < 0 or idx.max() >= n:
+        raise ParameterError(f"{what}: index out of range; allowed [0, {n - 1}]")
+    return idx
+
+
+def _need(scene, phase, name):
+    if getattr(scene, phase) is None:
+        raise ParameterError(f"probe {name!r}: the scene has no {phase} particles")
+
+
+def displacement(name: str, scene, idx) -> Probe:
+    """Mean displacement (ux, uy) of the discs ``idx`` from their mean start position."""
+    _need(scene, "solid", name)
+    ii = _indices(idx, scene.solid.n, f"probe {name!r}")
+    x0 = np.asarray(scene.solid.x, float)[ii].mean(axis=0)
+    jj = jnp.asarray(ii)
+
+    def fn(s):
+        x = s.solid.x
+        return jnp.mean(x[jj], axis=0) - jnp.asarray(x0, x.dtype)
+
+    return Probe(name, "displacement", fn, ("ux", "uy"), ("m", "m"),
+                 {"discs": int(ii.size), "start": x0.tolist()})
+
+
+def force(name: str, scene, idx, about=None) -> Probe:
+    """The fluid's force on the structure discs ``idx`` (Σ F_i from the FSI coupling) and
+    its moment about ``about`` (default: their start centroid), anticlockwise positive."""
+    _need(scene, "solid", name)
+    ii = _indices(idx, scene.solid.n, f"probe {name!r}")
+    structure = scene.solid.structure_indices()
+    rows = np.flatnonzero(np.isin(structure, ii))
+    if rows.size == 0:
+        raise ParameterError(f"probe {name!r}: none of its discs is a fluid-coupled structure "
+                             "disc")
+    c = (np.asarray(scene.solid.x, float)[ii].mean(axis=0) if about is None
+         else np.asarray(about, float))
+    rr = jnp.asarray(rows)
+
+    def fn(s):
+        f = s.fsi.force[rr]
+        x = s.solid.x[s.fsi.idx[rr]] - jnp.asarray(c, s.solid.x.dtype)
+        m = jnp.sum(x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0])
+        return jnp.concatenate([jnp.sum(f, axis=0), m[None]])
+
+    return Probe(name, "force", fn, ("Fx", "Fy", "M"), ("N/m", "N/m", "N m/m"),
+                 {"discs": int(rows.size), "about": c.tolist()})
+
+
+def pressure(name: str, scene, point, kernel="wendland") -> Probe:
+    """Fluid pressure at ``point`` by Shepard interpolation over the fluid particles within
+    the kernel support: P = Σ P_j W_j V_j / Σ W_j V_j with V_j = m_j/ρ_j and P_j from the
+    Tait EOS (the scene's ρ0, c0, γ); 0 when no fluid particle reaches the point."""
+    _need(scene, "fluid", name)
+    sp = scene.params.sph
+    rho0, c0, gamma = float(sp.rho0), float(sp.c0), float(sp.gamma)
+    w = kernels.get(kernel).w
+    p0 = np.asarray(point, float)
+
+    def fn(s):
+        f = s.fluid
+        r = jnp.linalg.norm(f.x - jnp.asarray(p0, f.x.dtype), axis=1)
+        wv = jnp.where(r < kernels.SUPPORT * f.h, w(r, f.h), 0.0) * f.mass / f.rho
+        p = eos.pressure(f.rho, rho0, c0, gamma)
+        den = jnp.sum(wv)
+        return jnp.sum(p * wv) / jnp.where(den > 0, den, 1.0)
+
+    return Probe(name, "pressure", fn, ("p",), ("Pa",), {"point": p0.tolist()})
+
+
+def water_level(name: str, scene, x: float, floor: float = 0.0) -> Probe:
+    """Height of the free surface at ``x``: the highest fluid particle whose centre lies
+    within Δp/2 of x (Δp the initial spacing), plus Δp/2; ``floor`` when none does."""
+    _need(scene, "fluid", name)
+    half = 0.5 * float(scene.params.sph.dp)
+
+    def fn(s):
+        xf = s.fluid.x
+        near = jnp.abs(xf[:, 0] - x) <= half
+        top = jnp.max(jnp.where(near, xf[:, 1] + half, floor))
+        return jnp.maximum(top, floor)
+
+    return Probe(name, "water_level", fn, ("level",), ("m",), {"x": float(x),
+                                                               "floor": float(floor)})
+
+
+def front(name: str, scene, direction: str = "+x") -> Probe:
+    """The fluid's leading edge along +x (max x + Δp/2) or −x (min x − Δp/2)."""
+    _need(scene, "fluid", name)
+    if direction not in ("+x", "-x"):
+        raise ParameterError(f"probe {name!r}: direction = {direction!r}; allowed '+x', '-x'")
+    half = 0.5 * float(scene.params.sph.dp)
+    if direction == "+x":
+        fn = lambda s: jnp.max(s.fluid.x[:, 0]) + half
+    else:
+        fn = lambda s: jnp.min(s.fluid.x[:, 0]) - half
+    return Probe(name, "front", fn, ("x",), ("m",), {"direction": direction})
+
+
+def bed_profile(name: str, scene, idx, x0: float, x1: float, bins: int,
+                floor: float = 0.0) -> Probe:
+    """Top of the grains ``idx`` in ``bins`` equal columns between ``x0`` and ``x1``: the
+    largest y + R of the grains whose centre lies in each column (``floor`` if none)."""
+    _need(scene, "solid", name)
+    if not (bins >= 1 and x1 > x0):
+        raise ParameterError(f"probe {name!r}: needs bins >= 1 and x1 > x0")
+    ii = jnp.asarray(_indices(idx, scene.solid.n, f"probe {name!r}"))
+    edges = np.linspace(x0, x1, bins + 1)
+
+    def fn(s):
+        x, r = s.solid.x[ii], s.solid.radius[ii]
+        k = jnp.floor((x[:, 0] - x0) / (x1 - x0) * bins).astype(jnp.int32)
+        inside = (k >= 0) & (k < bins)
+        top = jnp.where(inside, x[:, 1] + r, floor)
+        col = jnp.arange(bins)[:, None] == k[None, :]
+        return jnp.max(jnp.where(col, top[None, :], floor), axis=1)
+
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    return Probe(name, "bed_profile", fn, tuple(f"z{k}" for k in range(bins)),
+                 ("m",) * bins, {"x_centres": centres.tolist(), "floor": float(floor)})
+
+
+def broken_bonds(name: str, scene, idx=None) -> Probe:
+    """Number of broken bonds; with ``idx``, only bonds with both discs in that set."""
+    if scene.bonds is None:
+        raise ParameterError(f"probe {name!r}: the scene has no bonds")
+    bi, bj = np.asarray(scene.bonds.i), np.asarray(scene.bonds.j)
+    if idx is None:
+        sel = np.ones(bi.size, bool)
+    else:
+        ii = _indices(idx, scene.solid.n, f"probe {name!r}")
+        sel = np.isin(bi, ii) & np.isin(bj, ii)
+    mask = jnp.asarray(sel)
+    fn = lambda s: jnp.sum(mask & ~s.bonds.intact).astype(s.solid.x.dtype)
+    return Probe(name, "broken_bonds", fn, ("n",), ("-",), {"bonds": int(sel.sum())})
+
+
+# --- recording and output ----------------------------------------------------------------
+def check_names(probes) -> list:
+    """``probes`` as a list with unique names (ParameterError otherwise)."""
+    probes = list(probes or [])
+    names = [p.name for p in probes]
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        raise ParameterError(f"probe name {sorted(dup)[0]!r} used twice")
+    return probes
+
+
+def observer(probes):
+    """observe(state) = {name: (k,) value} for the probes."""
+    return lambda s: {p.name: p(s) for p in probes}
+
+
+def csv_path(output: str) -> str:
+    """``<output stem>_probes.csv`` beside the HDF5 file."""
+    return os.path.splitext(output)[0] + "_probes.csv"
+
+
+def write_csv(path: str, probes, times, values: dict) -> str:
+    """One CSV: ``t [s]`` then every probe's components, one row per step."""
+    os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
+    cols = [np.asarray(times, float)[:, None]]
+    header = ["t [s]"]
+    for p in probes:
+        cols.append(np.asarray(values[p.name], float).reshape(len(times), -1))
+        header += p.columns()
+    table = np.concatenate(cols, axis=1)
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        for row in table:
+            w.writerow([repr(float(v)) for v in row])
+    return path
+
+
+def describe(probes) -> str:
+    """JSON of every probe's kind, components, units and settings (HDF5 attribute)."""
+    return json.dumps({p.name: {"kind": p.kind, "components": list(p.components),
+                                "units": list(p.units), **p.spec} for p in probes})
