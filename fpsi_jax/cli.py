@@ -28,26 +28,44 @@ def cmd_list(args):
     return 0
 
 
+def is_scene_file(name: str) -> bool:
+    return name.lower().endswith(".toml")
+
+
 def cmd_run(args):
     from . import cases
     from .cases import overrides as ov
     from .cases.plotting import default_plot
     from .run.driver import setup, simulate
 
-    scene, phys = ov.build(args.scene, ov.parse_pairs(args.set))
+    case = None
+    if is_scene_file(args.scene):
+        from . import scenefile
+        case = scenefile.load(args.scene)
+        scene, probes = case.scene, case.probes
+        phys = ov.apply(scene, ov.parse_pairs(args.set), f"scene file {args.scene!r}")
+        out = args.out or case.output["file"] or f"results/{scene.name}.h5"
+        every = args.every if args.every is not None else case.output["every"]
+        want_plot = args.plot or case.output["plot"]
+        observe = None
+    else:
+        scene, phys = ov.build(args.scene, ov.parse_pairs(args.set))
+        out, every, want_plot, probes = args.out, args.every, args.plot, None
+        observer = cases.OBSERVERS.get(scene.name)
+        observe = observer(scene) if observer is not None else None
     t_end = scene.t_end if args.t_end is None else args.t_end
     if not t_end > 0:
         raise ParameterError(f"--t-end = {t_end} out of range; allowed (0, inf)")
     unsafe = args.unsafe_dt
     if unsafe and args.dt is None:
         raise ParameterError("--unsafe-dt needs --dt")
+    if every is not None and not 0 < every:
+        raise ParameterError(f"--every = {every} out of range; allowed (0, t_end] s")
     setup(scene, args.dt, unsafe_dt=unsafe, **phys)    # every check before compiling
-    observer = cases.OBSERVERS.get(scene.name)
-    observe = observer(scene) if observer is not None else None
     try:
-        res = simulate(scene, t_end=t_end, output=args.out, every=args.every,
+        res = simulate(scene, t_end=t_end, output=out, every=every,
                        progress=not args.quiet, dt=args.dt, observe=observe, unsafe_dt=unsafe,
-                       **phys)
+                       probes=probes, **phys)
     except SimulationError as e:
         print(f"error: {e}", file=sys.stderr)
         return 3
@@ -58,12 +76,18 @@ def cmd_run(args):
           f"(compile+first chunk {res.compile_s:.1f} s), "
           f"{res.particle_steps_per_s / 1e6:.2f} M particle-steps/s, "
           f"{res.rebuilds} neighbour rebuilds")
-    if args.out:
-        print(f"wrote {args.out} and {os.path.splitext(args.out)[0]}.xdmf")
-    if args.plot:
-        png = os.path.splitext(args.out or f"results/{scene.name}.h5")[0] + ".png"
+    if out:
+        extra = f" and {os.path.splitext(out)[0]}_probes.csv" if probes else ""
+        print(f"wrote {out}, {os.path.splitext(out)[0]}.xdmf{extra}")
+    if want_plot:
+        png = os.path.splitext(out or f"results/{scene.name}.h5")[0] + ".png"
         os.makedirs(os.path.dirname(os.path.abspath(png)), exist_ok=True)
-        for line in cases.PLOTS.get(scene.name, default_plot)(scene, res, png):
+        if case is not None:
+            from .scenefile.plot import plot_probes
+            lines = plot_probes(case, res, png)
+        else:
+            lines = cases.PLOTS.get(scene.name, default_plot)(scene, res, png)
+        for line in lines:
             print(line)
     return 0
 
@@ -85,7 +109,8 @@ def make_parser():
     sub = p.add_subparsers(dest="cmd", required=True)
     sub.add_parser("list", help="list scenes and validation cases")
     r = sub.add_parser("run", help="run a scene")
-    r.add_argument("scene")
+    r.add_argument("scene", help="a registered scene (fpsi list) or a scene file "
+                   "(my_case.toml; docs/scene-file.md)")
     r.add_argument("--t-end", type=float, default=None, help="physical time [s]")
     r.add_argument("--out", default=None, help="HDF5 output path (.xdmf written beside)")
     r.add_argument("--every", type=float, default=None, help="seconds between frames")
@@ -95,7 +120,8 @@ def make_parser():
                         "found the cases stable to 4-6x it; a run that blows up still stops "
                         "with the diagnosis)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override a scene parameter, a Params leaf or a Physics option")
+                   help="override a scene parameter (registered scenes), a Params leaf or a "
+                        "Physics option")
     r.add_argument("--plot", action="store_true", help="write a PNG next to the output")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     v = sub.add_parser("validate", help="run registered validation cases")

@@ -13,7 +13,8 @@ import pathlib
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 PKG = ROOT / "fpsi_jax"
-LAYERS = {"model": 1, "physics": 2, "solver": 3, "run": 4, "build": 5, "cases": 6, "cli": 7}
+LAYERS = {"model": 1, "physics": 2, "solver": 3, "run": 4, "build": 5, "cases": 6,
+          "scenefile": 7, "cli": 8}
 
 
 def module_name(path: pathlib.Path) -> str:

@@ -8,8 +8,8 @@ and ρ, clamps and prescribed motion (:mod:`.solids`), and material mappings
 a :class:`~fpsi_jax.model.scene.Scene` puts the parts together.
 """
 from ..model.errors import check_positive
-from .fluid import (G, dam_speed, fluid_block, fluid_polygon, fluid_rectangle,
-                    hydrostatic_fluid, sound_speed, sph_params)
+from .fluid import (G, dam_speed, fit_spacing, fluid_among_grains, fluid_block,
+                    fluid_polygon, fluid_rectangle, hydrostatic_fluid, sound_speed, sph_params)
 from .geometry import (box_walls, hex_packing, in_region, inside_polygon, lattice,
                        polygon_lattice, square_packing, tank_walls, touching_pairs)
 from .materials import hexagonal_strength, k42_mapping, lattice_mapping, shear_modulus
@@ -17,7 +17,7 @@ from .solids import (MASS_MODELS, PACKINGS, Structure, bonded_body, bonded_recta
                      disc_block, grain_bed, merge, move, packing)
 from .tank import Tank, boundary_block, boundary_layers, domain, tank
 
-__all__ = ["check_positive", "G", "dam_speed", "fluid_block", "fluid_polygon",
+__all__ = ["check_positive", "G", "dam_speed", "fit_spacing", "fluid_among_grains", "fluid_block", "fluid_polygon",
            "fluid_rectangle", "hydrostatic_fluid", "sound_speed", "sph_params", "box_walls",
            "hex_packing", "in_region", "inside_polygon", "lattice", "polygon_lattice",
            "square_packing", "tank_walls", "touching_pairs", "hexagonal_strength",

@@ -12,6 +12,7 @@ import numpy as np
 from ..model.errors import check_positive
 from ..model.params import SphParams
 from ..model.scene import FluidBlock
+from ..physics import fpi, kernels
 from ..physics.eos import density
 from .geometry import lattice, polygon_lattice
 
@@ -66,3 +67,20 @@ def fluid_polygon(vertices, dx, rho0, c0, h, surface_y=None, gamma=7.0, g=G):
     (:func:`fluid_block`)."""
     check_positive(dx=dx)
     return fluid_block(polygon_lattice(vertices, dx), dx, rho0, c0, h, surface_y, gamma, g)
+
+
+def fluid_among_grains(fluid, x_grain, r_grain, voidage, eps_floor=0.0):
+    """Fluid particles among grains get the mass ε ρ0 Δx² of the fluid their lattice cell
+    holds (ε the voidage the grains leave them, W2, at least ``eps_floor``), so the start is
+    at rest."""
+    eps = np.asarray(fpi.voidage_at(kernels.get("wendland"), fluid.x, fluid.h, x_grain,
+                                    np.pi * np.asarray(r_grain) ** 2, voidage), float)
+    eps = np.maximum(eps, eps_floor)
+    fluid.mass = fluid.mass * eps
+    return fluid
+
+
+def fit_spacing(width, dx):
+    """The spacing nearest ``dx`` that fills ``width`` with whole columns (a fluid block that
+    stops short of a wall by more than dx/2 starts out of balance and sloshes)."""
+    return width / max(1, round(width / dx))

@@ -46,9 +46,17 @@ def build(scene_name: str, overrides: dict, base: dict | None = None):
     for k, v in overrides.items():
         (kw if k in keys else rest)[k] = v
     scene = registry.build(scene_name, **kw)
+    return scene, apply(scene, rest, f"scene {scene_name!r}",
+                        f"scene parameters {', '.join(keys)}; ")
+
+
+def apply(scene, overrides: dict, what: str, also: str = "") -> dict:
+    """Apply ``overrides`` that are not builder keywords to a built ``scene``: ``dt``, Params
+    leaves (``mu`` or ``sph.mu``) and Physics options (returned, checked). ``what`` names
+    the scene in errors; ``also`` lists what else would have been allowed."""
     phys_opts = {}
     params = scene.params
-    for k, v in rest.items():
+    for k, v in overrides.items():
         if k == "dt":                      # the step asked for; setup checks it
             if not (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0):
                 raise ParameterError(f"dt = {v!r} out of range; allowed (0, bound] s")
@@ -62,10 +70,10 @@ def build(scene_name: str, overrides: dict, base: dict | None = None):
         except ParameterError as e:
             if "unknown parameter" in str(e):
                 raise ParameterError(
-                    f"unknown key {k!r} for scene {scene_name!r}; allowed: scene parameters "
-                    f"{', '.join(keys)}; params {', '.join(params.names())}; physics options "
+                    f"unknown key {k!r} for {what}; allowed: {also}params "
+                    f"{', '.join(params.names())}; physics options "
                     f"{', '.join(Physics.OPTIONS)}") from None
             raise
     scene.params = params
     Physics.for_scene(scene, **phys_opts)   # validate the options now
-    return scene, phys_opts
+    return phys_opts

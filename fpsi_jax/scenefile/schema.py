@@ -1,0 +1,324 @@
+"""Every key a scene file may hold: its type, SI unit, default and meaning.
+
+This table is the single source of what a file can say: :mod:`.reader` checks a file
+against it (unknown keys, types, ranges) and ``docs/scene-file.md`` is generated from it
+(``python -m fpsi_jax.scenefile.schema > docs/scene-file.md``).
+
+Types: ``float``, ``int``, ``bool``, ``str``, ``point`` [x, y], ``box`` [x0, y0, x1, y1]
+(corners), ``polygon`` [[x, y], …] (≥ 3 vertices), ``polyline`` [[x, y], …] (≥ 2),
+``points`` [[x, y], …] (≥ 1), ``region`` (a box, a polygon, or a list of boxes/polygons),
+``range`` [a, b] with a < b, ``list`` (of strings), ``load`` (a table
+``{region = …, force = [Fx, Fy]}``), ``vectors`` (a point, or one point per disc).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+REQUIRED = object()   # a key without a default must be given
+
+
+@dataclass(frozen=True)
+class Key:
+    name: str
+    type: str
+    unit: str
+    default: Any
+    doc: str
+    lo: float | None = None         # allowed range (numbers)
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple | None = None
+
+    @property
+    def required(self) -> bool:
+        return self.default is REQUIRED
+
+    def range_text(self) -> str:
+        if self.choices:
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        if self.lo is None and self.hi is None:
+            return ""
+        left = "(" if self.lo_open else "["
+        right = ")" if self.hi_open else "]"
+        return (f"{left}{'-inf' if self.lo is None else self.lo}, "
+                f"{'inf' if self.hi is None else self.hi}{right}")
+
+
+def _pos(name, unit, default, doc, **kw):
+    return Key(name, "float", unit, default, doc, lo=0.0, lo_open=True, **kw)
+
+
+PACKING = ("square", "hex")
+MASS = ("disc", "lattice", "sphere")
+SHAPE = "one of ``box``, ``polygon``, ``points``"
+
+# Tables: name -> (is an array of tables, keys, doc). A '.' in a name is a sub-table.
+TABLES: dict[str, tuple[bool, tuple[Key, ...], str]] = {}
+
+
+def table(name, array, doc, *keys):
+    TABLES[name] = (array, tuple(keys), doc)
+
+
+table("scene", False, "What is run, for how long, and where.",
+      Key("name", "str", "", None, "scene name (default: the file's stem)"),
+      _pos("t_end", "s", REQUIRED, "physical time to simulate"),
+      _pos("dt", "s", None, "time step (default: the stability bound; a larger one is "
+           "refused)"),
+      Key("gravity", "point", "m/s²", (0.0, -9.81), "gravitational acceleration"),
+      _pos("v_max", "m/s", None, "the flow's velocity scale (sets c0 = 10 v_max); default "
+           "√(2 g H) with H the fluid's height, else the fastest initial disc speed, else 1"),
+      Key("domain", "box", "m", None, "rectangle every particle must stay inside (default: "
+          "the tank with `headroom` above it, grown to hold every body)"),
+      Key("headroom", "float", "", 0.5, "room above the tank walls, × tank height",
+          lo=0.0))
+
+table("fluid", False, "The (single) SPH fluid: material, resolution and numerics.",
+      _pos("density", "kg/m³", 1000.0, "reference density ρ0"),
+      Key("viscosity", "float", "Pa s", 1.0e-3, "dynamic viscosity μ", lo=0.0),
+      _pos("dx", "m", REQUIRED, "initial particle spacing Δp"),
+      _pos("h", "m", None, "smoothing length (default 1.25 dx)"),
+      _pos("sound_speed", "m/s", None, "numerical sound speed c0 (default: "
+           "`sound_speed_factor` × v_max)"),
+      _pos("sound_speed_factor", "", 10.0, "c0 = factor × v_max when sound_speed is not "
+           "given (10: density varies by about 1 %)"),
+      Key("gamma", "float", "", 7.0, "Tait exponent γ", lo=1.0),
+      _pos("fit_width", "m", None, "stretch dx to the nearest spacing that fills this width "
+           "with whole columns (a block that stops short of a wall sloshes)"),
+      Key("delta", "float", "", 0.1, "δ-SPH coefficient (physics option delta_sph)",
+          lo=0.0, hi=1.0),
+      Key("alpha", "float", "", 0.0, "Monaghan artificial viscosity α (physics option "
+          "artificial_viscosity)", lo=0.0, hi=1.0),
+      Key("r_clump", "float", "", 0.01, "anti-clump strength", lo=0.0, hi=1.0),
+      Key("eps_xsph", "float", "", 0.5, "XSPH coefficient ε", lo=0.0, hi=1.0))
+
+table("fluid.region", True, "A body of still water (hydrostatic density, at rest unless "
+      "`velocity`), filled on the fluid's dx lattice. Give `box` or `polygon`.",
+      Key("box", "box", "m", None, "rectangle [x0, y0, x1, y1]"),
+      Key("polygon", "polygon", "m", None, "polygon vertices"),
+      Key("surface", "float", "m", None, "height of the free surface the hydrostatic "
+          "pressure is measured from (default: the region's top)"),
+      Key("velocity", "point", "m/s", (0.0, 0.0), "initial velocity"))
+
+table("tank", False, "An open-top tank [0, width] × [0, height] of fixed SPH boundary "
+      "particles (and DEM line walls for the discs).",
+      _pos("width", "m", REQUIRED, "inner width"),
+      _pos("height", "m", REQUIRED, "wall height"),
+      _pos("dx_boundary", "m", None, "boundary particle spacing (default: the fluid's dx)"),
+      _pos("h", "m", None, "boundary particles' smoothing length (default: the fluid's h)"),
+      Key("layers", "int", "", None, "boundary layers (default: enough to cover 2h, ≥ 2)",
+          lo=2),
+      Key("dem_walls", "bool", "", None, "DEM line walls on the floor and sides (default: "
+          "when the scene has discs)"),
+      Key("lid", "bool", "", False, "close the top (DEM wall only)"))
+
+table("obstacle", True, "A fixed body: SPH boundary particles filling it (on the tank's "
+      "dx_boundary lattice) and DEM walls along its outline. Give `box`, `polygon` or "
+      "`polyline`.",
+      Key("name", "str", "", None, "label"),
+      Key("box", "box", "m", None, "rectangle [x0, y0, x1, y1], filled"),
+      Key("polygon", "polygon", "m", None, "polygon, filled"),
+      Key("polyline", "polyline", "m", None, "an open line, `layers` particle rows thick on "
+          "its right-hand side (walking from the first vertex)"),
+      _pos("dx", "m", None, "particle spacing (default: the tank's dx_boundary, else the "
+           "fluid's dx)"),
+      Key("layers", "int", "", None, "rows of a polyline (default: enough to cover 2h)",
+          lo=1),
+      Key("dem_walls", "bool", "", None, "DEM walls along the outline (default: when the "
+          "scene has discs)"))
+
+_DISC_COMMON = (
+    Key("name", "str", "", REQUIRED, "label that probes and fits refer to"),
+    Key("box", "box", "m", None, "fill [x0, y0, x1, y1] with a packing of discs `d`"),
+    Key("polygon", "polygon", "m", None, "fill a polygon with a packing of discs `d`"),
+    Key("points", "points", "m", None, "explicit disc centres"),
+    _pos("d", "m", None, "disc diameter (with box/polygon; with points: 2 × radius)"),
+    _pos("radius", "m", None, "disc radius (with points)"),
+    Key("packing", "str", "", None, "packing of box/polygon", choices=PACKING),
+    _pos("rho", "kg/m³", REQUIRED, "density"),
+    _pos("thickness", "m", 1.0, "out-of-plane thickness t of the discs' mass"),
+    Key("velocity", "vectors", "m/s", (0.0, 0.0), "initial velocity (one vector, or one per "
+        "disc)"),
+    Key("clamp", "region", "m", None, "discs in this region are held fixed"),
+    Key("load", "load", "N", None, "external force {region = …, force = [Fx, Fy]} shared "
+        "equally by the discs in the region (ramped by contacts.load_ramp)"),
+)
+
+table("structure", True, "A bonded body: discs glued by parallel bonds between touching "
+      "neighbours, bond and contact stiffness from E and ν (K42–K43, W's 1 % contact "
+      "split), mass per area ρ. Give `box`, `polygon` or `points`.",
+      *_DISC_COMMON,
+      _pos("E", "Pa", None, "Young's modulus (required unless [bonds] gives kn and ks)"),
+      Key("nu", "float", "", 0.3, "Poisson's ratio", lo=-1.0, hi=0.5, lo_open=True,
+          hi_open=True),
+      Key("plane_strain", "bool", "", False, "map E/(1−ν²): a slice of a plate spanning "
+          "the tank's width"),
+      Key("contact_fraction", "float", "", 0.01, "share of the stiffness in the contact "
+          "springs (W26–W30)", lo=0.0),
+      _pos("shear_factor", "", 1.0, "multiplies the shear springs"),
+      _pos("sigma_c", "Pa", 1.0e30, "bond tensile strength σ̄_c (K21)"),
+      _pos("tau_c", "Pa", 1.0e30, "bond shear strength τ̄_c (K22)"),
+      Key("mass_model", "str", "", "lattice", "disc mass: the packing's cell × ρ "
+          "('lattice'), ρπR² ('disc') or ρ 4/3 πR³ ('sphere')", choices=MASS),
+      Key("coupled", "bool", "", True, "takes part in the fluid sums (physics.coupling)"))
+
+table("grains", True, "Free grains (discs of density ρ, mass ρπR²t): a packed bed that "
+      "feels the fluid through voidage, buoyancy and drag. Give `box`, `polygon` or "
+      "`points`.",
+      *_DISC_COMMON,
+      Key("n", "int", "", None, "keep only the first n discs of the packing (rows from the "
+          "bottom)", lo=1),
+      Key("mass_model", "str", "", "disc", "disc mass model", choices=MASS))
+
+table("discs", True, "Discs that are neither a bonded structure nor grains in the fluid "
+      "(dry DEM: collisions, stacks, bars). Give `box`, `polygon` or `points`.",
+      *_DISC_COMMON,
+      Key("bonds", "str", "", "none", "'touching': bond every touching pair (constants from "
+          "[bonds])", choices=("none", "touching")),
+      Key("mass_model", "str", "", "disc", "disc mass model", choices=MASS),
+      Key("grain", "bool", "", False, "couple to the fluid as grains (physics.fpi)"))
+
+table("kinematic", True, "Discs moving at a prescribed constant velocity whatever the forces "
+      "(a gate lifted at a given speed); they push the fluid and the grains. Give `box`, "
+      "`polygon` or `points`.",
+      *[k for k in _DISC_COMMON if k.name not in ("clamp", "load")],
+      Key("mass_model", "str", "", "lattice", "disc mass model", choices=MASS),
+      Key("coupled", "bool", "", True, "takes part in the fluid sums (physics.coupling)"))
+
+table("contacts", False, "DEM contact law (W10–W17, K25). kn and ks default to the bonded "
+      "structures' material; without a structure kn is required.",
+      _pos("kn", "N/m", None, "normal contact stiffness per unit thickness"),
+      Key("ks", "float", "N/m", None, "shear contact stiffness (default ½ kn, or the "
+          "material's)", lo=0.0),
+      Key("friction", "float", "", 0.3, "Coulomb friction coefficient μ", lo=0.0),
+      Key("beta_n", "float", "", 0.0, "normal dashpot ratio", lo=0.0, hi=1.0, hi_open=True),
+      Key("beta_s", "float", "", 0.0, "shear dashpot ratio", lo=0.0, hi=1.0, hi_open=True),
+      Key("alpha", "float", "", 0.0, "local damping α (K25)", lo=0.0, hi=1.0, hi_open=True),
+      Key("damping", "float", "1/s", 0.0, "mass-proportional viscous damping c", lo=0.0),
+      Key("load_ramp", "float", "s", 0.0, "external loads grow linearly over this time",
+          lo=0.0))
+
+table("bonds", False, "Parallel-bond constants (K17–K22); each key overrides what the "
+      "structures' material gives.",
+      _pos("kn", "Pa/m", None, "normal stiffness per area k̄_n"),
+      Key("ks", "float", "Pa/m", None, "shear stiffness per area k̄_s", lo=0.0),
+      _pos("sigma_c", "Pa", None, "tensile strength σ̄_c"),
+      _pos("tau_c", "Pa", None, "shear strength τ̄_c"),
+      Key("beta_bar", "float", "", 1.0, "moment factor β̄ in the tensile criterion", lo=0.0,
+          hi=1.0),
+      Key("lam", "float", "", 1.0, "bond radius multiplier λ", lo=0.0, hi=1.0, lo_open=True),
+      _pos("thickness", "m", 1.0, "out-of-plane thickness of the slab section"))
+
+table("fpi", False, "Fluid–grain coupling constants (W24 lubrication).",
+      Key("lub_gap_min", "float", "", 0.02, "gap regularisation × d̄", lo=0.0, hi=1.0,
+          lo_open=True),
+      Key("lub_cutoff", "float", "", 0.1, "lubrication acts for gaps ≤ this × d̄", lo=0.0,
+          hi=1.0))
+
+table("physics", False, "Which mechanisms are compiled (Physics options; docs/physics.md).",
+      Key("coupling", "str", "", None, "fluid–structure coupling (default 'extrapolated' when "
+          "fluid and coupled discs meet; 'none' turns it off)",
+          choices=("extrapolated", "stationary", "pressure_gradient",
+                   "pressure_approximation", "none")),
+      Key("boundary_pressure", "str", "", "extrapolated", "pressure of the fixed boundary "
+          "particles", choices=("fixed", "extrapolated")),
+      Key("delta_sph", "bool", "", None, "δ-SPH density diffusion (default: fluid.delta > 0)"),
+      Key("artificial_viscosity", "bool", "", None, "Monaghan viscosity (default: "
+          "fluid.alpha > 0)"),
+      Key("x64", "bool", "", False, "run in float64"),
+      Key("fpi", "bool", "", None, "grains feel the fluid (default: grains and fluid both "
+          "present)"),
+      Key("voidage", "str", "", "area", "voidage model", choices=("area", "mapped")),
+      Key("eps_floor", "float", "", 0.0, "lower bound of the fluid voidage", lo=0.0,
+          hi=1.0, hi_open=True),
+      Key("bond_section", "str", "", "slab", "bond cross-section",
+          choices=("slab", "circular")),
+      Key("kernel", "str", "", "wendland", "SPH kernel", choices=("wendland", "cubic")),
+      Key("dem_substeps", "int", "", None, "DEM sub-steps per SPH step (default: the fewest "
+          "the DEM bound needs)", lo=1),
+      Key("xsph", "bool", "", True, "XSPH velocity smoothing"),
+      Key("variable_h", "bool", "", True, "variable smoothing length"),
+      Key("lubrication", "bool", "", True, "lubrication between grains in fluid (W24)"),
+      Key("fpi_pressure", "str", "", "archimedes", "pressure force on grains",
+          choices=("archimedes", "gradient")),
+      Key("rho_tolerance", "float", "", 0.3, "stop when |ρ/ρ0 − 1| exceeds this", lo=0.0,
+          lo_open=True))
+
+table("output", False, "What `fpsi run` writes.",
+      Key("file", "str", "", None, "HDF5 path, relative to the scene file (default "
+          "results/<name>.h5 in the working folder); an .xdmf and a _probes.csv go beside"),
+      _pos("every", "s", None, "time between frames (default t_end/100)"),
+      Key("plot", "bool", "", False, "draw the probes against their references and a "
+          "snapshot"))
+
+table("probe", True, "A measurement recorded after every step (fpsi_jax.run.probes).",
+      Key("name", "str", "", REQUIRED, "label (HDF5 /probes/<name>, CSV columns "
+          "<name>.<component>)"),
+      Key("kind", "str", "", REQUIRED, "what is measured", choices=(
+          "displacement", "force", "pressure", "water_level", "front", "bed_profile",
+          "broken_bonds")),
+      Key("body", "str", "", None, "name of a structure, grains, discs or kinematic group "
+          "(displacement, force, bed_profile, broken_bonds)"),
+      Key("region", "region", "m", None, "only the body's discs in this region "
+          "(displacement: e.g. the tip)"),
+      Key("point", "point", "m", None, "pressure: where; displacement: the body's disc "
+          "nearest to it"),
+      Key("about", "point", "m", None, "force: moment reference point (default: the "
+          "discs' start centroid)"),
+      Key("x", "float", "m", None, "water_level: where"),
+      Key("direction", "str", "", "+x", "front: which way", choices=("+x", "-x")),
+      Key("x_range", "range", "m", None, "bed_profile: from x0 to x1"),
+      Key("bins", "int", "", 10, "bed_profile: columns", lo=1),
+      Key("floor", "float", "m", 0.0, "water_level/bed_profile: value when dry or empty"),
+      Key("reference", "str", "", None, "CSV to plot against (relative to the scene file; "
+          "columns as `fpsi calibrate --data`)"))
+
+table("calibration", False, "Defaults for `fpsi calibrate <file>` (each has a command-line "
+      "flag that wins).",
+      Key("data", "str", "", None, "measured CSV (relative to the scene file)"),
+      Key("fit", "list", "", None, "what to fit: Params leaves (dem.damping) or material "
+          "constants of a structure (gate.E), each optionally name:lo:hi"),
+      Key("probe", "str", "", None, "the probe the data measures (default: the only one)"),
+      Key("window", "range", "s", None, "fitted time window (default: the data's span)"),
+      Key("holdout", "range", "s", None, "held-out window, reported but not fitted"),
+      Key("target", "str", "", "trajectory", "'trajectory' (every sample), 'static' (the "
+          "mean over the window) or 'vibration' (frequency and damping ratio)",
+          choices=("trajectory", "static", "vibration")),
+      Key("start", "list", "", None, "start values, name=value (default: the file's)"),
+      Key("steps", "int", "", 30, "optimiser steps (max)", lo=1),
+      Key("optimizer", "str", "", "lm", "optimiser", choices=("lm", "adam", "sgd")),
+      Key("jacobian", "str", "", "ad", "'ad' (forward mode) or 'fd' (secant, for chaotic "
+          "long coupled runs)", choices=("ad", "fd")))
+
+
+def markdown() -> str:
+    """docs/scene-file.md: every table and key with type, unit, default and meaning."""
+    from .. import scenefile
+    out = [scenefile.__doc__.strip(), ""]
+    for name, (array, keys, doc) in TABLES.items():
+        out += [f"## `[{'[' if array else ''}{name}{']' if array else ''}]`", "", doc, "",
+                "| key | type | unit | default | allowed | meaning |",
+                "|---|---|---|---|---|---|"]
+        for k in keys:
+            d = "required" if k.required else ("—" if k.default is None else
+                                               f"`{_toml(k.default)}`")
+            out.append(f"| `{k.name}` | {k.type} | {k.unit or '—'} | {d} | "
+                       f"{k.range_text() or '—'} | {k.doc} |")
+        out.append("")
+    return "\n".join(out)
+
+
+def _toml(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (tuple, list)):
+        return "[" + ", ".join(_toml(x) for x in v) + "]"
+    if isinstance(v, str):
+        return f'"{v}"'
+    return repr(v)
+
+
+if __name__ == "__main__":
+    print(markdown())
