@@ -277,8 +277,10 @@ def _touching(A, ra, B, rb, tol=1e-6) -> bool:
     return False
 
 
-def _overlaps(path, groups, fluid, spec):
-    """Refuse discs of two bodies that overlap, and water inside a body or an obstacle."""
+def _overlaps(path, groups, fluid, spacing, spec):
+    """Refuse discs of two bodies that overlap, and water inside a body or an obstacle (a
+    fluid particle stands for a cell of side ``spacing``: it may touch a disc, not
+    overlap it)."""
     for a in range(len(groups)):
         for b in range(a + 1, len(groups)):
             (ta, ia, A, _), (tb, ib, B, _) = groups[a], groups[b]
@@ -290,7 +292,7 @@ def _overlaps(path, groups, fluid, spec):
     for t, item, blk, _ in groups:
         if t == "grains" or item.get("grain"):
             continue                     # water fills the pores of a grain bed
-        if _touching(fluid.x, 0.0, blk.x, blk.radius):
+        if _touching(fluid.x, 0.5 * spacing, blk.x, blk.radius):
             fail(path, "fluid.region", f"water overlaps {t} {item['name']!r}: shrink the "
                  "region or move the body")
     for i, ob in enumerate(spec.get("obstacle", [])):
@@ -341,7 +343,7 @@ def compose(spec: dict, path: str) -> SceneFile:
         if ii:
             bonds = BondBlock(i=np.concatenate(ii).astype(np.int32),
                               j=np.concatenate(jj).astype(np.int32))
-    _overlaps(path, groups, fluid, spec)
+    _overlaps(path, groups, fluid, sp.dp if sp is not None else 0.0, spec)
 
     # fixed SPH particles and DEM walls
     has_discs = solid is not None

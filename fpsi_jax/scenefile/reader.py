@@ -25,7 +25,7 @@ def where(path, table, item=None, index=None) -> str:
     label = f"[[{table}]]" if array else f"[{table}]"
     if array:
         name = item.get("name") if isinstance(item, dict) else None
-        label += f" {name!r}" if name else f" #{index + 1}"
+        label += f" {name!r}" if name else (f" #{index + 1}" if index is not None else "")
     return f"{os.path.basename(path)}: {label}"
 
 
@@ -61,11 +61,47 @@ def _is_box(v):
             and v[2] > v[0] and v[3] > v[1])
 
 
+# units a number may be written in, as a string "<value> <unit>" (e.g. dx = "3.5 mm",
+# E = "10 MPa"): unit -> (SI unit of the schema, factor to SI)
+QUANTITY_UNITS = {
+    "m": ("m", 1.0), "mm": ("m", 1e-3), "cm": ("m", 1e-2), "km": ("m", 1e3),
+    "s": ("s", 1.0), "ms": ("s", 1e-3),
+    "Pa": ("Pa", 1.0), "kPa": ("Pa", 1e3), "MPa": ("Pa", 1e6), "GPa": ("Pa", 1e9),
+    "kg/m³": ("kg/m³", 1.0), "kg/m3": ("kg/m³", 1.0), "g/cm³": ("kg/m³", 1e3),
+    "g/cm3": ("kg/m³", 1e3),
+    "Pa s": ("Pa s", 1.0), "mPa s": ("Pa s", 1e-3),
+    "m/s": ("m/s", 1.0), "mm/s": ("m/s", 1e-3), "cm/s": ("m/s", 1e-2),
+    "m/s²": ("m/s²", 1.0), "m/s2": ("m/s²", 1.0),
+    "N": ("N", 1.0), "kN": ("N", 1e3), "N/m": ("N/m", 1.0), "kN/m": ("N/m", 1e3),
+    "Pa/m": ("Pa/m", 1.0), "1/s": ("1/s", 1.0), "Hz": ("1/s", 1.0),
+}
+
+
+def quantity(key, text: str) -> float:
+    """``"<value> <unit>"`` in the key's SI unit; ValueError naming the unit if it measures
+    something else."""
+    parts = text.strip().split(None, 1)
+    try:
+        value = float(parts[0])
+    except (ValueError, IndexError):
+        raise ValueError(f"= {text!r} is not a number [{key.unit}]") from None
+    unit = parts[1].strip() if len(parts) > 1 else ""
+    si, f = QUANTITY_UNITS.get(unit, (None, None))
+    if si != key.unit:
+        allowed = [u for u, (s, _) in QUANTITY_UNITS.items() if s == key.unit]
+        raise ValueError(f"= {text!r}: unit {unit or 'missing'!r} does not measure "
+                         f"{key.unit or 'a pure number'}; allowed units: "
+                         f"{', '.join(allowed) or 'none (write a plain number)'}")
+    return value * f
+
+
 def convert(key, v):
     """``v`` checked against ``key``'s type and range; returns the value or raises
     ValueError with what is wrong."""
     t = key.type
     unit = f" {key.unit}" if key.unit else ""
+    if t == "float" and isinstance(v, str) and key.unit:
+        v = quantity(key, v)
     if t in ("float", "int"):
         if not _number(v) or (t == "int" and not isinstance(v, int)):
             raise ValueError(f"= {v!r} is not {'an integer' if t == 'int' else 'a number'}"

@@ -4,7 +4,8 @@ This table is the single source of what a file can say: :mod:`.reader` checks a 
 against it (unknown keys, types, ranges) and ``docs/scene-file.md`` is generated from it
 (``python -m fpsi_jax.scenefile.schema > docs/scene-file.md``).
 
-Types: ``float``, ``int``, ``bool``, ``str``, ``point`` [x, y], ``box`` [x0, y0, x1, y1]
+Types: ``float`` (a number in the key's SI unit, or a string with a unit, ``"3.5 mm"``,
+``"10 MPa"``), ``int``, ``bool``, ``str``, ``point`` [x, y], ``box`` [x0, y0, x1, y1]
 (corners), ``polygon`` [[x, y], …] (≥ 3 vertices), ``polyline`` [[x, y], …] (≥ 2),
 ``points`` [[x, y], …] (≥ 1), ``region`` (a box, a polygon, or a list of boxes/polygons),
 ``range`` [a, b] with a < b, ``list`` (of strings), ``load`` (a table
@@ -40,8 +41,8 @@ class Key:
             return "one of " + ", ".join(repr(c) for c in self.choices)
         if self.lo is None and self.hi is None:
             return ""
-        left = "(" if self.lo_open else "["
-        right = ")" if self.hi_open else "]"
+        left = "(" if self.lo_open or self.lo is None else "["
+        right = ")" if self.hi_open or self.hi is None else "]"
         return (f"{left}{'-inf' if self.lo is None else self.lo}, "
                 f"{'inf' if self.hi is None else self.hi}{right}")
 
@@ -293,10 +294,72 @@ table("calibration", False, "Defaults for `fpsi calibrate <file>` (each has a co
           "long coupled runs)", choices=("ad", "fd")))
 
 
+INTRO = """# Scene files
+
+Describe your own case in a TOML file and run it:
+
+    fpsi run my_case.toml --plot              # HDF5 + XDMF (ParaView), probes CSV, plots
+    fpsi calibrate my_case.toml --data measured.csv --fit E,damping
+
+Every value is in SI units: a plain number is in the unit the tables below give, and a
+string with a unit is converted (`dx = "3.5 mm"`, `E = "10 MPa"`, `rho = "1.1 g/cm3"`); a
+unit that measures something else is refused. A bad file is refused before anything is
+built or compiled, with one line naming the file, the table and the key, and exit code 2:
+
+    error: flume.toml: [[structure]] 'gate': key 'E' = -1.0 is out of range; allowed (0.0, inf) Pa
+
+Shipped files: `examples/<scene>.toml` for every registered scene (each builds exactly the
+initial state of `fpsi run <scene>`), and examples of cases of your own
+(`examples/*.toml`, `examples/calibrate/*.toml`). This page is generated from
+`fpsi_jax/scenefile/schema.py` (`python -c "from fpsi_jax.scenefile.schema import
+markdown; print(markdown())" > docs/scene-file.md`).
+
+## How the parts fit together
+
+* `[scene]` sets the time, gravity and the domain; `[fluid]` the single fluid's material
+  and resolution, with one or more `[[fluid.region]]` bodies of still water (hydrostatic
+  density, so nothing moves at t = 0).
+* `[tank]` is an open box of fixed SPH boundary particles, with DEM line walls for the
+  discs; `[[obstacle]]` adds fixed bodies (filled boxes and polygons, or layered
+  polylines).
+* Discs come in four kinds, numbered in this order: `[[discs]]` (dry DEM), `[[grains]]`
+  (a bed that feels the fluid), `[[structure]]` (bonded bodies from E, ν, ρ) and
+  `[[kinematic]]` (moving at a prescribed velocity). Every body has a `name` that probes and
+  fits refer to. Bodies may touch but not overlap; water may fill a grain bed's pores but
+  not a structure.
+* The model holds one set of contact constants (`[contacts]`) and one bond material: every
+  structure with E must share it.
+* `[[probe]]` measurements are recorded after every step inside the compiled run
+  (`/probes/<name>` in the HDF5 file, `<output>_probes.csv`) and plotted by `--plot` against
+  the CSV named by `reference`.
+
+Types: `float` (a number, or a string with a unit), `int`, `bool`, `str`, `point` [x, y],
+`box` [x0, y0, x1, y1] (corners), `polygon` [[x, y], …] (≥ 3 vertices), `polyline`
+(≥ 2), `points` (≥ 1), `region` (a box, a polygon, or a list of them), `range` [a, b] with
+a < b, `list` (strings, or one comma-separated string), `load`
+`{region = …, force = [Fx, Fy]}`, `vectors` (one [vx, vy] or one per disc).
+"""
+
+DATA = """## Data files (references and `fpsi calibrate --data`)
+
+CSV with a header row naming each column with its unit in brackets; lines starting with
+`#` are comments. The first column is the time; the others are probe components, written
+`<probe>.<component>` (or just `<component>`):
+
+    # tip of the gate, from the video
+    t [s], tip.ux [mm], tip.uy [mm]
+    0.04, 12.7, 0.84
+
+Units are converted to SI and must measure what the probe measures (mm for a displacement
+is fine, N is refused). Probe components: displacement `ux, uy` [m]; force `Fx, Fy` [N/m],
+`M` [N m/m] (per metre of thickness); pressure `p` [Pa]; water_level `level` [m]; front
+`x` [m]; bed_profile `z0, z1, …` [m]; broken_bonds `n` [-].
+"""
+
+
 def markdown() -> str:
     """docs/scene-file.md: every table and key with type, unit, default and meaning."""
-    from .. import scenefile
-    out = [scenefile.__doc__.strip(), ""]
+    out = [INTRO]
     for name, (array, keys, doc) in TABLES.items():
         out += [f"## `[{'[' if array else ''}{name}{']' if array else ''}]`", "", doc, "",
                 "| key | type | unit | default | allowed | meaning |",
@@ -307,6 +370,7 @@ def markdown() -> str:
             out.append(f"| `{k.name}` | {k.type} | {k.unit or '—'} | {d} | "
                        f"{k.range_text() or '—'} | {k.doc} |")
         out.append("")
+    out.append(DATA)
     return "\n".join(out)
 
 
@@ -318,7 +382,3 @@ def _toml(v):
     if isinstance(v, str):
         return f'"{v}"'
     return repr(v)
-
-
-if __name__ == "__main__":
-    print(markdown())

@@ -1,0 +1,132 @@
+"""Probes against hand values on hand-made states, and recorded by simulate into the
+result, the HDF5 file and the CSV."""
+from types import SimpleNamespace as NS
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from fpsi_jax.build import disc_block, fluid_rectangle, sph_params, touching_pairs
+from fpsi_jax.model.errors import ParameterError
+from fpsi_jax.model.params import DemParams, Params
+from fpsi_jax.model.scene import Scene
+from fpsi_jax.physics import eos
+from fpsi_jax.run import probes as P
+from fpsi_jax.run.driver import simulate
+from fpsi_jax.run.io import read
+
+DX = 0.01
+
+
+def scene(fluid=True, solid=True):
+    sp = sph_params(1000.0, 20.0, 1e-3, DX, 0.01, 0.5, 0.1)
+    fl = fluid_rectangle(0.0, 0.0, 0.1, 0.05, DX, 1000.0, 20.0, 1.3 * DX) if fluid else None
+    blk = None
+    if solid:
+        blk = disc_block(np.array([[0.2, 0.01], [0.21, 0.01], [0.22, 0.01], [0.4, 0.02]]),
+                         0.005, 2000.0)
+        blk.structure = np.array([True, True, True, False])
+    return Scene(name="probe_test", params=Params(sph=sp if fluid else None,
+                                                  dem=DemParams() if solid else None),
+                 domain_lo=(-0.1, -0.1), domain_hi=(0.6, 0.3), v_max=1.0, fluid=fl,
+                 solid=blk)
+
+
+def solid_state(x, **kw):
+    """A state with just what the solid probes read (float32, as a run)."""
+    return NS(solid=NS(x=jnp.asarray(x), radius=jnp.full(len(x), 0.005)), **kw)
+
+
+def test_displacement_is_the_mean_shift_of_the_selected_discs():
+    sc = scene(fluid=False)
+    p = P.displacement("tip", sc, [0, 1])
+    x = sc.solid.x.copy()
+    x[0] += (0.003, -0.001)
+    x[1] += (0.001, 0.003)
+    x[3] += (1.0, 1.0)                      # not selected
+    np.testing.assert_allclose(p(solid_state(x)), [0.002, 0.001], atol=1e-7)
+    assert p.components == ("ux", "uy") and p.units == ("m", "m")
+
+
+def test_force_sums_the_fluid_force_and_its_moment_about_the_centroid():
+    sc = scene(fluid=False)
+    p = P.force("load", sc, [0, 1, 2])
+    f = np.array([[1.0, 2.0], [3.0, -1.0], [0.5, 0.5]])
+    s = solid_state(sc.solid.x, fsi=NS(force=jnp.asarray(f), idx=jnp.arange(3)))
+    c = sc.solid.x[:3].mean(axis=0)                               # (0.21, 0.01)
+    r = sc.solid.x[:3] - c
+    m = float(np.sum(r[:, 0] * f[:, 1] - r[:, 1] * f[:, 0]))      # −0.01·2 + 0.01·0.5
+    np.testing.assert_allclose(p(s), [4.5, 1.5, m], atol=1e-7)
+    assert m == pytest.approx(-0.015)
+
+
+def test_force_refuses_discs_that_are_not_coupled_structure():
+    with pytest.raises(ParameterError, match="structure"):
+        P.force("f", scene(fluid=False), [3])
+
+
+def test_pressure_interpolates_a_uniform_state_exactly_and_is_zero_when_dry():
+    sc = scene(solid=False)
+    fl = sc.fluid
+    rho = np.full(fl.n, 1001.0)
+    s = NS(fluid=NS(x=jnp.asarray(fl.x), rho=jnp.asarray(rho), mass=jnp.asarray(fl.mass),
+                    h=jnp.asarray(fl.h)))
+    want = float(eos.pressure(jnp.asarray(rho[:1]), 1000.0, 20.0, 7.0)[0])   # same float32
+    assert float(P.pressure("p", sc, (0.05, 0.02))(s)[0]) == pytest.approx(want, rel=1e-6)
+    assert float(P.pressure("p", sc, (0.5, 0.2))(s)[0]) == 0.0
+
+
+def test_water_level_front_and_dry_floor():
+    sc = scene(solid=False)
+    s = NS(fluid=NS(x=jnp.asarray(sc.fluid.x)))
+    # the lattice's top row is at 0.045 and its last column at 0.095 (spacing 0.01)
+    assert float(P.water_level("h", sc, 0.05)(s)[0]) == pytest.approx(0.05)
+    assert float(P.water_level("h", sc, 0.3, floor=-1.0)(s)[0]) == -1.0
+    assert float(P.front("f", sc)(s)[0]) == pytest.approx(0.1)
+    assert float(P.front("f", sc, "-x")(s)[0]) == pytest.approx(0.0)
+
+
+def test_bed_profile_takes_the_top_of_the_grains_in_each_column():
+    sc = scene(fluid=False)
+    p = P.bed_profile("bed", sc, [0, 1, 2, 3], 0.195, 0.425, 2)   # columns split at 0.31
+    x = sc.solid.x.copy()
+    x[1, 1] = 0.05
+    np.testing.assert_allclose(p(solid_state(x)), [0.055, 0.025], atol=1e-7)
+    np.testing.assert_allclose(p.spec["x_centres"], [0.2525, 0.3675])
+
+
+def test_broken_bonds_counts_the_broken_ones_in_the_set():
+    sc = scene(fluid=False)
+    sc.bonds = touching_pairs(sc.solid.x, 0.005)                 # 0–1, 1–2
+    s = solid_state(sc.solid.x, bonds=NS(intact=jnp.asarray([False, True])))
+    assert float(P.broken_bonds("n", sc)(s)[0]) == 1.0
+    assert float(P.broken_bonds("n", sc, [1, 2])(s)[0]) == 0.0
+
+
+def test_probe_names_must_be_unique():
+    sc = scene(fluid=False)
+    with pytest.raises(ParameterError, match="used twice"):
+        P.check_names([P.displacement("a", sc, [0]), P.displacement("a", sc, [1])])
+
+
+def test_simulate_records_probes_every_step_in_result_hdf5_and_csv(tmp_path):
+    sc = scene()
+    sc.params = sc.params.replace(dem=DemParams(kn=1e4, ks=5e3))
+    sc.solid.structure = None
+    sc.t_end = 0.01
+    probes = [P.displacement("disc", sc, [3]), P.front("front", sc)]
+    out = str(tmp_path / "run.h5")
+    res = simulate(sc, output=out, probes=probes, progress=False, every=0.004)
+    n = res.n_steps
+    assert res.probes["disc"].shape == (n, 2) and res.probes["front"].shape == (n, 1)
+    # the free disc falls under gravity: uy = −g t²/2 to the leapfrog's accuracy
+    t = res.times
+    np.testing.assert_allclose(res.probes["disc"][:, 1], -0.5 * 9.81 * t ** 2, rtol=0.02,
+                               atol=1e-7)
+    run = read(out)
+    np.testing.assert_allclose(run.probes["disc"], res.probes["disc"])
+    np.testing.assert_allclose(run.probes["time"], t)
+    table = np.loadtxt(str(tmp_path / "run_probes.csv"), delimiter=",", skiprows=1)
+    assert table.shape == (n, 4)
+    head = open(tmp_path / "run_probes.csv").readline().strip()
+    assert head == "t [s],disc.ux [m],disc.uy [m],front.x [m]"

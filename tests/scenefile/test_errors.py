@@ -1,0 +1,159 @@
+"""Bad scene files: one line naming the file, the table and the key, exit code 2 from
+``fpsi run``, nothing written, nothing compiled."""
+import os
+
+import pytest
+
+from fpsi_jax import cli, scenefile
+from fpsi_jax.model.errors import ParameterError
+
+GOOD = """
+[scene]
+t_end = 0.01
+
+[fluid]
+density = 1000.0
+dx = 0.01
+
+[[fluid.region]]
+box = [0.0, 0.0, 0.1, 0.1]
+
+[tank]
+width = 0.4
+height = 0.2
+
+[[structure]]
+name = "gate"
+box = [0.2, 0.0, 0.21, 0.08]
+d = 0.005
+E = 1.0e6
+nu = 0.3
+rho = 1100.0
+clamp = [0.2, 0.07, 0.21, 0.08]
+
+[[probe]]
+name = "tip"
+kind = "displacement"
+body = "gate"
+region = [0.2, 0.0, 0.21, 0.005]
+"""
+
+
+def edit(text, old, new):
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+# (label, edit to GOOD, what the one line must contain)
+BAD = [
+    ("unknown key", lambda t: edit(t, "density = 1000.0", "densty = 1000.0"),
+     ["[fluid]", "unknown key 'densty'", "allowed: density, viscosity"]),
+    ("unknown table", lambda t: t + "\n[flud]\nx = 1\n",
+     ["unknown table [flud]", "allowed:"]),
+    ("wrong type", lambda t: edit(t, "dx = 0.01", 'dx = "fine"'),
+     ["[fluid]", "key 'dx'", "not a number"]),
+    ("wrong unit", lambda t: edit(t, "E = 1.0e6", 'E = "1 kg"'),
+     ["[[structure]] 'gate'", "key 'E'", "unit 'kg'", "MPa"]),
+    ("negative size", lambda t: edit(t, "width = 0.4", "width = -0.4"),
+     ["[tank]", "key 'width'", "out of range; allowed (0.0, inf) m"]),
+    ("inverted box", lambda t: edit(t, "box = [0.0, 0.0, 0.1, 0.1]",
+                                    "box = [0.1, 0.0, 0.0, 0.1]"),
+     ["[[fluid.region]] #1", "key 'box'", "x1 > x0"]),
+    ("required key", lambda t: edit(t, "t_end = 0.01", ""),
+     ["[scene]", "key 't_end' is required"]),
+    ("bool for number", lambda t: edit(t, "t_end = 0.01", "t_end = true"),
+     ["[scene]", "key 't_end'", "not a number"]),
+    ("not TOML", lambda t: t + "\nthis is = = not toml\n", ["not valid TOML"]),
+    ("fluid outside tank", lambda t: edit(t, "box = [0.0, 0.0, 0.1, 0.1]",
+                                          "box = [-0.05, 0.0, 0.1, 0.1]"),
+     ["[[fluid.region]]", "outside the tank"]),
+    ("overlapping bodies", lambda t: t + """
+[[structure]]
+name = "second"
+box = [0.205, 0.0, 0.215, 0.05]
+d = 0.005
+E = 1.0e6
+nu = 0.3
+rho = 1100.0
+""", ["[[structure]] 'second'", "overlaps structure 'gate'"]),
+    ("water in a body", lambda t: edit(t, "box = [0.2, 0.0, 0.21, 0.08]",
+                                       "box = [0.05, 0.0, 0.06, 0.08]").replace(
+        "clamp = [0.2, 0.07, 0.21, 0.08]", "clamp = [0.05, 0.07, 0.06, 0.08]").replace(
+        "region = [0.2, 0.0, 0.21, 0.005]", "region = [0.05, 0.0, 0.06, 0.005]"),
+     ["[[fluid.region]]", "water overlaps structure 'gate'"]),
+    ("water in an obstacle", lambda t: t + "\n[[obstacle]]\nbox = [0.0, 0.0, 0.02, 0.02]\n",
+     ["[[obstacle]] #1", "water lies inside"]),
+    ("probe body missing", lambda t: edit(t, 'body = "gate"', 'body = "gat"'),
+     ["[[probe]] 'tip'", "key 'body' = 'gat' names no body; bodies: gate"]),
+    ("probe kind", lambda t: edit(t, 'kind = "displacement"', 'kind = "strain"'),
+     ["[[probe]] 'tip'", "key 'kind'", "not a choice"]),
+    ("probe needs key", lambda t: t + '\n[[probe]]\nname = "p"\nkind = "pressure"\n',
+     ["[[probe]] 'p'", "key 'point' is required"]),
+    ("probe reference missing", lambda t: edit(t, 'kind = "displacement"',
+                                               'kind = "displacement"\nreference = "no.csv"'),
+     ["[[probe]] 'tip'", "key 'reference'", "no such file"]),
+    ("clamp misses", lambda t: edit(t, "clamp = [0.2, 0.07, 0.21, 0.08]",
+                                    "clamp = [0.3, 0.07, 0.31, 0.08]"),
+     ["[[structure]] 'gate'", "key 'clamp'", "holds none"]),
+    ("two materials", lambda t: t + """
+[[structure]]
+name = "second"
+box = [0.3, 0.0, 0.31, 0.05]
+d = 0.005
+E = 2.0e6
+nu = 0.3
+rho = 1100.0
+""", ["[[structure]] 'second'", "material", "differs from structure 'gate'"]),
+    ("bad choice", lambda t: t + '\n[physics]\ncoupling = "glue"\n',
+     ["[physics]", "key 'coupling'", "not a choice", "'extrapolated'"]),
+    ("array written as table", lambda t: t.replace("[[structure]]", "[structure]"),
+     ["[structure] must be an array of tables", "write [[structure]]"]),
+    ("no shape", lambda t: edit(t, "box = [0.2, 0.0, 0.21, 0.08]\n", ""),
+     ["[[structure]] 'gate'", "give exactly one of box, polygon, points"]),
+    ("contacts without material", lambda t: edit(t, "E = 1.0e6\n", ""),
+     ["[contacts]", "key 'kn' is required", "N/m"]),
+    ("bonds without material", lambda t: edit(t, "E = 1.0e6\n", "") + "\n[contacts]\nkn = 1e5\n",
+     ["[bonds]", "keys 'kn' and 'ks' are required"]),
+]
+
+
+@pytest.mark.parametrize("label,change,expect", BAD, ids=[b[0] for b in BAD])
+def test_bad_file_one_line_exit_2_nothing_written(tmp_path, capsys, label, change, expect):
+    path = tmp_path / "flume.toml"
+    path.write_text(change(GOOD))
+    out = tmp_path / "out" / "run.h5"
+    code = cli.main(["run", str(path), "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2, err
+    assert len(err.splitlines()) == 1, err
+    assert "flume.toml" in err
+    for piece in expect:
+        assert piece in err, (piece, err)
+    assert not os.path.exists(tmp_path / "out")
+
+
+def test_the_good_file_loads_and_quantities_with_units_convert(tmp_path):
+    path = tmp_path / "flume.toml"
+    path.write_text(edit(edit(GOOD, "dx = 0.01", 'dx = "1 cm"'), "E = 1.0e6", 'E = "1 MPa"'))
+    case = scenefile.load(str(path))
+    assert case.scene.params.sph.dp == pytest.approx(0.01)
+    assert case.materials["gate"]["E"] == pytest.approx(1.0e6)
+    assert [p.name for p in case.probes] == ["tip"]
+    assert case.scene.solid.n == 2 * 16
+
+
+def test_errors_are_parameter_errors_in_python_too(tmp_path):
+    path = tmp_path / "flume.toml"
+    path.write_text(edit(GOOD, "density = 1000.0", "density = 0.0"))
+    with pytest.raises(ParameterError, match=r"flume.toml: \[fluid\]: key 'density'"):
+        scenefile.load(str(path))
+
+
+def test_docs_scene_file_md_lists_every_key_as_the_schema_does():
+    from fpsi_jax.scenefile.schema import markdown
+    here = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    with open(os.path.join(here, "docs", "scene-file.md")) as fh:
+        doc = fh.read()
+    assert doc.strip() == markdown().strip(), (
+        "docs/scene-file.md is out of date: python -c \"from fpsi_jax.scenefile.schema "
+        "import markdown; print(markdown())\" > docs/scene-file.md")
