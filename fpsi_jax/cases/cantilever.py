@@ -7,7 +7,8 @@ import math
 import numpy as np
 
 from ..build import (check_positive, disc_block, hex_packing, k42_mapping, lattice_mapping,
-                     square_packing, touching_pairs)
+                     touching_pairs)
+from ..build import packing as disc_packing
 from ..model.errors import ParameterError
 from ..model.params import BondParams, DemParams, Params
 from ..model.scene import Scene
@@ -21,25 +22,49 @@ PACKINGS = ("hex", "square")
 
 def beam_discs(length, height, d, packing="hex", clamp_columns=3):
     """Disc centres of a beam clamped at x = 0 and free at x = ``length``: rows along x, the
-    discs with x ≤ 0 (``clamp_columns`` of them per row) are the clamp. The packing is chosen
-    so that some rows have a disc centre exactly at x = length (the loaded tip discs).
+    discs with x ≤ 0 (``clamp_columns`` of them per row) are the clamp, the rows centred on
+    y = 0. Some rows have a disc centre at x = length (the loaded tip discs): every row of
+    the square packing (:func:`beam_box`), the rows like the top one of the hex packing.
     Returns (x, fixed, tip)."""
     if packing not in PACKINGS:
         raise ParameterError(f"packing must be one of {PACKINGS}, got {packing!r}")
+    if packing == "square":
+        x0, y0, x1, y1 = beam_box(length, height, d, clamp_columns)
+        x = disc_packing(x0, y0, x1 - x0, y1 - y0, d, "square")
+    else:
+        x = hex_beam(length, height, d, clamp_columns)
+    tol = 1e-9 * d
+    fixed = x[:, 0] <= tol
+    tip = np.abs(x[:, 0] - length) <= tol
+    return x, fixed, tip
+
+
+def beam_box(length, height, d, clamp_columns=3):
+    """The rectangle (x0, y0, x1, y1) [m] that a square packing of discs ``d`` fills with the
+    beam: whole columns from the tip column centred at x = length back to the last one at
+    x ≥ −(clamp_columns − ½) d, and the round-down(height/d) rows centred on y = 0 (what a
+    scene file's ``box`` says for the same beam)."""
+    n_cols = int(math.floor((length + (clamp_columns - 0.5) * d) / d + 1e-9)) + 1
+    n_rows = int(math.floor(height / d + 1e-9))
+    x1 = length + d / 2
+    return x1 - n_cols * d, -n_rows * d / 2, x1, n_rows * d / 2
+
+
+def hex_beam(length, height, d, clamp_columns=3):
+    """Hex-packed disc centres of the beam: a packing wider than the beam shifted so that a
+    disc of its top row (and of the rows like it) sits at x = length, cut at the tip and
+    behind the clamp, its rows centred on y = 0."""
     n_half = int(math.ceil(length / d)) + clamp_columns + 1
     width = (n_half + 1) * d
-    x = (hex_packing if packing == "hex" else square_packing)(0.0, 0.0, width, height, d)
-    # put a tip disc of the top row (hex: of the rows like it) at x = length
+    x = hex_packing(0.0, 0.0, width, height, d)
     top = x[:, 1] == x[:, 1].max()
     x[:, 0] += length - x[top, 0].max()
     tol = 1e-9 * d
     x = x[x[:, 0] <= length + tol]
     clamp_limit = -(clamp_columns - 1) * d - tol
     x = x[x[:, 0] >= clamp_limit - d / 2]
-    fixed = x[:, 0] <= tol
-    tip = np.abs(x[:, 0] - length) <= tol
     x[:, 1] -= x[:, 1].mean()
-    return x, fixed, tip
+    return x
 
 
 def mode_shape(s):

@@ -8,7 +8,7 @@ import time
 import numpy as np
 
 from ..build import (G, boundary_block, boundary_layers, check_positive, dam_speed, disc_block,
-                     domain, hydrostatic_fluid, lattice, sound_speed, sph_params,
+                     domain, hydrostatic_fluid, lattice, packing, sound_speed, sph_params,
                      touching_pairs)
 from ..model.params import DemParams, Params
 from ..model.scene import Scene
@@ -44,6 +44,15 @@ def plate_reference(builder_kwargs, g=G):
     return plate_deflection(b["span_built"], b["thickness_built"], b["water_height_built"],
                             b["E"], b["nu"], b["rho_water"], b["rho_plate"], g,
                             shear_modulus=G_eff)
+
+
+def plate_box(span_built, n_rows, d, clamp_columns):
+    """The rectangle (x0, y0, x1, y1) [m] that a square packing of discs ``d`` fills with the
+    plate: columns centred at k d for k = −(c−1) … L/d + c − 1 (``clamp_columns`` c of them
+    at x ≤ 0 and at x ≥ L, the clamps), ``n_rows`` rows below y = 0 (what a scene file's
+    ``box`` says for the same plate)."""
+    half = (clamp_columns - 0.5) * d
+    return -half, -n_rows * d, span_built + half, 0.0
 
 
 @scene
@@ -86,10 +95,9 @@ def hydrostatic_plate(*, span=0.07875, thickness=0.005, water_height=0.1575005, 
     n_span = rows(span, d, "span")
     n_rows = rows(thickness, d, "thickness")
     L = n_span * d
-    # plate: columns k d, k = −(c−1) … n_span + c − 1; rows below y = 0
-    cols = np.arange(-(clamp_columns - 1), n_span + clamp_columns)
-    X, Y = np.meshgrid(cols * d, -d / 2 - d * np.arange(n_rows), indexing="ij")
-    xs = np.stack([X.ravel(), Y.ravel()], axis=1)
+    # plate: columns at k d, k = −(c−1) … n_span + c − 1, rows below y = 0
+    p0x, p0y, p1x, p1y = plate_box(L, n_rows, d, clamp_columns)
+    xs = packing(p0x, p0y, p1x - p0x, p1y - p0y, d, "square")
     tol = 1e-9 * d
     fixed = (xs[:, 0] <= tol) | (xs[:, 0] >= L - tol)
     k, bp = bond_params(E, nu, d, plane_strain, shear_factor=shear_factor)
