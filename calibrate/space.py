@@ -39,9 +39,12 @@ class Fitted:
     """One calibrated quantity.
 
     name    label in reports (the dotted leaf for a single leaf)
-    leaves  the Params leaves it sets; with ``scale=True`` each is multiplied by the value
-            (its base value × v), else the single leaf is set to v
+    leaves  the Params leaves it sets; with ``scale=True`` each is multiplied by v/ref
+            (its base value × v/ref), else the single leaf is set to v
     lo, hi  bounds (None: open); log  optimise log v (the default for positive values)
+    ref     with ``scale=True``: the physical value at which the leaves keep their base
+            values (1 for a pure factor; the scene's E [Pa] for a structure's E, so that
+            the value, its bounds and its standard error read in Pa)
     """
 
     name: str
@@ -50,6 +53,7 @@ class Fitted:
     lo: float | None = None
     hi: float | None = None
     log: bool = True
+    ref: float = 1.0
 
     def check(self, value: float):
         if self.log and not value > 0:
@@ -62,27 +66,39 @@ class Fitted:
                                  f"({self.lo}, {self.hi}) (strictly inside the bounds)")
 
     # v ↔ z ---------------------------------------------------------------------------
-    def to_value(self, z):
+    # The transform works on v/ref (bounds lo/ref, hi/ref): a factor on the leaves that
+    # does not depend on how large the reported unit is.
+    def factor(self, z):
+        """v/ref (jnp): what a scale quantity multiplies its leaves by."""
+        r = self.ref
         if self.lo is not None and self.hi is not None:
+            lo, hi = self.lo / r, self.hi / r
             s = jax.nn.sigmoid(z)
             if self.log:
-                a, b = math.log(self.lo), math.log(self.hi)
+                a, b = math.log(lo), math.log(hi)
                 return jnp.exp(a + (b - a) * s)
-            return self.lo + (self.hi - self.lo) * s
+            return lo + (hi - lo) * s
         if self.lo is not None or self.hi is not None:
             raise ParameterError(f"{self.name}: give both bounds or neither")
         return jnp.exp(z) if self.log else z
 
+    def to_value(self, z):
+        """The physical value v = ref · factor(z)."""
+        f = self.factor(z)
+        return f if self.ref == 1.0 else self.ref * f
+
     def to_z(self, v: float) -> float:
         self.check(v)
+        r = self.ref
         if self.lo is not None and self.hi is not None:
+            lo, hi = self.lo / r, self.hi / r
             if self.log:
-                a, b = math.log(self.lo), math.log(self.hi)
-                s = (math.log(v) - a) / (b - a)
+                a, b = math.log(lo), math.log(hi)
+                s = (math.log(v / r) - a) / (b - a)
             else:
-                s = (v - self.lo) / (self.hi - self.lo)
+                s = (v / r - lo) / (hi - lo)
             return math.log(s / (1.0 - s))
-        return math.log(v) if self.log else float(v)
+        return math.log(v / r) if self.log else float(v / r)
 
 
 def param(name: str, lo=None, hi=None, log=True) -> Fitted:
@@ -90,9 +106,11 @@ def param(name: str, lo=None, hi=None, log=True) -> Fitted:
     return Fitted(name=name, leaves=(name,), lo=lo, hi=hi, log=log)
 
 
-def scale(name: str, leaves: Sequence[str], lo=None, hi=None) -> Fitted:
-    """A common factor (start 1) on several leaves."""
-    return Fitted(name=name, leaves=tuple(leaves), scale=True, lo=lo, hi=hi, log=True)
+def scale(name: str, leaves: Sequence[str], lo=None, hi=None, ref: float = 1.0) -> Fitted:
+    """A common factor on several leaves: the value v multiplies each by v/ref (start: ref,
+    the leaves' base values)."""
+    return Fitted(name=name, leaves=tuple(leaves), scale=True, lo=lo, hi=hi, log=True,
+                  ref=float(ref))
 
 
 def stiffness(lo=0.1, hi=10.0) -> Fitted:
@@ -151,7 +169,7 @@ class ParamSpace:
         if unknown:
             raise ParameterError(f"start values for parameters not fitted: {sorted(unknown)}; "
                                  f"fitted: {[f.name for f in self.fitted]}")
-        self.start = {f.name: float(start.get(f.name, 1.0 if f.scale
+        self.start = {f.name: float(start.get(f.name, f.ref if f.scale
                                               else np.asarray(base.get(f.leaves[0]))))
                       for f in self.fitted}
         self.z0 = jnp.asarray([f.to_z(self.start[f.name]) for f in self.fitted])
@@ -169,7 +187,7 @@ class ParamSpace:
         p = self.base if base is None else base
         out = p
         for k, f in enumerate(self.fitted):
-            v = f.to_value(z[k])
+            v = f.factor(z[k]) if f.scale else f.to_value(z[k])
             for leaf in f.leaves:
                 old = p.get(leaf)
                 new = v * old if f.scale else v

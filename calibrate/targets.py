@@ -16,6 +16,14 @@ Gauss–Newton standard errors use the Jacobian of the stacked residuals.
   through the interpolated crossing times and the peak values (exact to O(Δt²)).
 * :class:`Trajectory`  a sampled curve (e.g. the gate's tip u_x, u_y from the experiment)
   interpolated at the reference times inside a window: r = (u(t_k) − u*_k)/scale.
+* :class:`WindowMean`  the mean of each measured component over a time window (a static
+  state reached at the end of a damped run) against the mean of the data there:
+  r = (ū − ū*)/s with s = |ū*| (or the data's largest |value| when ū* = 0).
+
+A measured curve is compared where it was sampled: the simulation, recorded after every
+step, is interpolated linearly at the data's times (the value at t = 0 being the
+observation of the initial state), so a free vibration measured from the data and from the
+simulation sees the same sampling.
 """
 from __future__ import annotations
 
@@ -57,17 +65,29 @@ class StaticDeflection:
                 "rel_error": m / self.value - 1.0}
 
 
+def interpolate(t_query, times, u, initial=None):
+    """u (n, c) recorded at ``times`` (after each step), linearly interpolated at
+    ``t_query``; ``initial`` (c,) is the value at t = 0 (default zeros, a displacement)."""
+    u = jnp.asarray(u)
+    u0 = (jnp.zeros((1, u.shape[1]), u.dtype) if initial is None
+          else jnp.asarray(initial, u.dtype).reshape(1, -1))
+    tt = jnp.concatenate([jnp.zeros(1, u.dtype), jnp.asarray(times, u.dtype)])
+    uu = jnp.concatenate([u0, u])
+    tq = jnp.asarray(t_query, u.dtype)
+    return jnp.stack([jnp.interp(tq, tt, uu[:, c]) for c in range(u.shape[1])], axis=1)
+
+
 def free_vibration(times, y, max_crossings: int = 64, skip: int = 0):
     """(f_n [Hz], ζ, number of half cycles used) of the free vibration y(t) (jnp,
-    differentiable). ``skip`` drops the first crossings (an initial transient)."""
+    differentiable), sampled at increasing ``times`` (uniform or not). ``skip`` drops the
+    first crossings (an initial transient)."""
     times = jnp.asarray(times)
-    dt = times[1] - times[0]
     s = jnp.sign(y)
     cross = (s[:-1] * s[1:]) < 0                        # a crossing between k and k + 1
     k = jnp.nonzero(cross, size=max_crossings, fill_value=0)[0]
     n = jnp.minimum(jnp.sum(cross), max_crossings)
     y0, y1 = y[k], y[k + 1]
-    tc = times[k] + dt * y0 / (y0 - y1)
+    tc = times[k] + (times[k + 1] - times[k]) * y0 / (y0 - y1)
     valid = (jnp.arange(max_crossings) < n) & (jnp.arange(max_crossings) >= skip)
     # half cycle m lies between crossings m and m + 1
     seg = jnp.cumsum(jnp.concatenate([jnp.zeros(1, jnp.int32), cross.astype(jnp.int32)]))
@@ -100,9 +120,34 @@ class FreeVibration:
     skip: int = 0
     weight: float = 1.0
     name: str = "free_vibration"
+    t_ref: tuple | None = None
+    initial: tuple | None = None
 
     def measure(self, times, u):
-        return free_vibration(times, u[:, self.component], self.max_crossings, self.skip)
+        """(f_n, ζ, half cycles) of the simulated component: at every step, or, with
+        ``t_ref``, at those sample times (a measured curve's, see :meth:`from_data`)."""
+        if self.t_ref is None:
+            return free_vibration(times, u[:, self.component], self.max_crossings, self.skip)
+        y = interpolate(self.t_ref, times, u, self.initial)[:, self.component]
+        return free_vibration(jnp.asarray(self.t_ref, y.dtype), y, self.max_crossings,
+                              self.skip)
+
+    @classmethod
+    def from_data(cls, t, y, component: int, initial=None, fit=("frequency",
+                                                                  "damping_ratio"), **kw):
+        """The target a measured curve y(t) (samples at ``t`` > 0) defines: its frequency
+        and damping ratio, measured the same way as the simulation's at the same times.
+        ``fit`` names the references kept."""
+        t = np.asarray(t, float)
+        f, z, n = free_vibration(jnp.asarray(t), jnp.asarray(np.asarray(y, float)),
+                                 kw.get("max_crossings", 64), kw.get("skip", 0))
+        if int(n) < 2:
+            raise ValueError(f"only {int(n)} complete half cycles of the free vibration in "
+                             "the window; a frequency and a damping ratio need at least 2")
+        return cls(frequency=float(f) if "frequency" in fit else None,
+                   damping_ratio=float(z) if "damping_ratio" in fit else None,
+                   component=component, t_ref=tuple(map(float, t)),
+                   initial=None if initial is None else tuple(map(float, initial)), **kw)
 
     def residuals(self, times, u):
         f, z, _ = self.measure(times, u)
@@ -148,6 +193,7 @@ class Trajectory:
     scale: tuple | None = None
     weight: float = 1.0
     name: str = "trajectory"
+    initial: tuple | None = None
 
     def _sel(self, times):
         t = np.asarray(self.t_ref, float)
@@ -166,11 +212,8 @@ class Trajectory:
     def sample(self, times, u):
         """The simulated components at the reference times inside the window (m, c)."""
         inside = self._sel(times)
-        tq = jnp.asarray(np.asarray(self.t_ref, float)[inside], u.dtype)
-        tt = jnp.concatenate([jnp.zeros(1, u.dtype), jnp.asarray(times, u.dtype)])
-        cols = [jnp.interp(tq, tt, jnp.concatenate([jnp.zeros(1, u.dtype), u[:, c]]))
-                for c in self.components]
-        return jnp.stack(cols, axis=1)
+        tq = np.asarray(self.t_ref, float)[inside]
+        return interpolate(tq, times, u, self.initial)[:, list(self.components)]
 
     def residuals(self, times, u):
         inside = self._sel(times)
@@ -189,6 +232,41 @@ class Trajectory:
         r = self.rms(times, u)
         return {"quantity": f"RMS of components {list(self.components)} [m]", "rms": r,
                 "window": list(self.window)}
+
+
+@dataclasses.dataclass(frozen=True)
+class WindowMean:
+    """The mean of components ``components`` of the observation over the steps with
+    t0 ≤ t ≤ t1 (``window``) against ``values`` (one per component, e.g. the mean of the
+    measured samples there); residuals divided by ``scale`` (one per component)."""
+
+    values: tuple
+    components: tuple
+    window: tuple
+    scale: tuple
+    weight: float = 1.0
+    name: str = "window_mean"
+
+    def _steps(self, times):
+        inside = _window(times, *self.window)
+        if not inside.any():
+            raise ValueError(f"{self.name}: no step inside the window {self.window}")
+        return np.nonzero(inside)[0]
+
+    def measure(self, times, u):
+        k = jnp.asarray(self._steps(times))
+        return jnp.mean(u[k][:, list(self.components)], axis=0)
+
+    def residuals(self, times, u):
+        m = self.measure(times, u)
+        return (m - jnp.asarray(self.values, m.dtype)) / jnp.asarray(self.scale, m.dtype)
+
+    def report(self, times, u) -> dict:
+        m = np.asarray(self.measure(times, jnp.asarray(u)), float)
+        return {"quantity": f"mean over {list(self.window)} s", "value": m.tolist(),
+                "reference": list(self.values),
+                "rel_error": (m / np.where(np.asarray(self.values) != 0,
+                                           np.asarray(self.values), np.nan) - 1).tolist()}
 
 
 def total_residuals(targets, times, u):
