@@ -354,6 +354,26 @@ Units are converted to SI and must measure what the probe measures (mm for a dis
 is fine, N is refused). Probe components: displacement `ux, uy` [m]; force `Fx, Fy` [N/m],
 `M` [N m/m] (per metre of thickness); pressure `p` [Pa]; water_level `level` [m]; front
 `x` [m]; bed_profile `z0, z1, …` [m]; broken_bonds `n` [-].
+
+## What `fpsi calibrate --fit` accepts
+
+A comma list (or a `fit` list in `[calibration]`), each `name` or `name:lo:hi` (bounds in
+SI units; a positive quantity is fitted in log space):
+
+- `<structure>.E` — Young's modulus [Pa]: a common scale on every spring it sets (bond and
+  contact, normal and shear, unless `[bonds]` or `[contacts]` give them); plain `E` with
+  one structure. Default bounds ×0.2 – ×5.
+- `<structure>.sigma_c`, `<structure>.tau_c` — bond strengths [Pa].
+- `stiffness` — a factor on every spring.
+- any scalar `Params` leaf by its dotted name or a short name naming one leaf:
+  `damping` (`dem.damping`, viscous damping c [1/s], default bounds ×0.01 – ×100 of its
+  start), `dem.mu`, `bond.beta_bar`, …; `fpsi calibrate my_case.toml --fit Q` lists them.
+
+`--start name=value` sets a start value (default: the file's); `--window a,b` the fitted
+time span (default: the data's), `--holdout a,b` a span reported but not fitted. The run
+writes `<out>/<file>.json` (start, fitted values, Gauss–Newton standard errors, loss
+history, RMS per component on both windows, wall times) and `<out>/<file>.png` (measured
+against simulated at the start and fitted values, and the loss).
 """
 
 
