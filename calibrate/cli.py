@@ -136,7 +136,7 @@ def run_case(args) -> int:
     case = builder(**kw)
     res = fit(case.calibration, optimizer=args.optimizer or "lm", learning_rate=args.lr,
               max_steps=steps, noise=args.noise, progress=not args.quiet,
-              loss_tol=LOSS_TOL)
+              loss_tol=LOSS_TOL, rel_tol=REL_TOL, patience=PATIENCE, jacobian=case.jacobian)
     res.extra.update(meta=case.meta, truth=case.truth, builder_kwargs=kw)
     os.makedirs(args.out, exist_ok=True)
     js = os.path.join(args.out, f"{args.case}.json")

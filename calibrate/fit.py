@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from fpsi_jax.model.errors import ParameterError
+from fpsi_jax.model.errors import ParameterError, SimulationError
 from fpsi_jax.run.driver import run_until_fits
 from fpsi_jax.solver import stages
 
@@ -283,6 +283,15 @@ def _residuals_at(jac, cal, z):
     return np.asarray(J, float), np.asarray(r, float)
 
 
+def _trial(jac, cal, z):
+    """(J, r) at a trial point, or None when the rollout there goes unstable (the step is
+    then rejected like one that raises the loss)."""
+    try:
+        return _residuals_at(jac, cal, z)
+    except SimulationError:
+        return None
+
+
 def _levenberg_marquardt(cal, z, tr, jac, max_steps, loss_tol, max_step=1.0) -> str:
     """z ← z − (JᵀJ + μ diag JᵀJ)⁻¹ Jᵀr, the step capped at ``max_step`` in z (a trust
     region: a factor e per unit for a log parameter); a step that raises the loss is
@@ -303,6 +312,9 @@ def _levenberg_marquardt(cal, z, tr, jac, max_steps, loss_tol, max_step=1.0) -> 
             return f"no improvement in {tr.patience} steps"
         if k == max_steps:
             return "max_steps"
+        if not np.isfinite(J).all():
+            return (f"non-finite Jacobian at step {k} (the derivative of the rollout "
+                    "overflowed: try the secant, jacobian='fd')")
         A = J.T @ J
         d = np.diag(A)
         d = np.where(d > 0, d, max(float(d.max()), 1e-30) * 1e-12)
@@ -311,8 +323,9 @@ def _levenberg_marquardt(cal, z, tr, jac, max_steps, loss_tol, max_step=1.0) -> 
         if n > max_step:
             step *= max_step / n
         z_try = z + jnp.asarray(step, cal.dtype)
-        J_try, r_try = _residuals_at(jac, cal, z_try)
-        trial = float(r_try @ r_try)
+        got = _trial(jac, cal, z_try)
+        J_try, r_try = got if got is not None else (None, None)
+        trial = float(r_try @ r_try) if got is not None else math.inf
         if math.isfinite(trial) and trial < loss:
             z, J, r, loss, mu = z_try, J_try, r_try, trial, max(mu / 3.0, 1e-9)
         else:

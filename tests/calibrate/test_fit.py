@@ -3,6 +3,9 @@ plain ones, reverse-mode gradients through ≥ 2000 steps match central finite d
 within 1 %, and forward- and reverse-mode agree. That a synthetic fit recovers stiffness and
 damping is tested in tests/cli/test_calibrate_cli.py; the full-size figures are in
 experiments/calibrate_cantilever.py."""
+import math
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -97,3 +100,42 @@ def test_gate_gradient_matches_central_differences():
         e = jnp.zeros_like(z).at[k].set(h)
         fd = (float(cal.value(z + e)[0]) - float(cal.value(z - e)[0])) / (2 * h)
         assert float(g[k]) == pytest.approx(fd, rel=0.01), cal.space.names[k]
+
+
+class _Line:
+    """A stand-in Calibration for the LM loop alone: residual r = z − 1 (one parameter)."""
+    dtype = np.float64
+    space = SimpleNamespace(names=("a",), values=lambda z: z)
+
+
+def _lm(monkeypatch, residuals):
+    from calibrate import fit as fit_mod
+    monkeypatch.setattr(fit_mod, "_residuals_at", lambda jac, cal, z: residuals(z))
+    tr = fit_mod._Tracker(_Line, 1e-12, 100, False, print)
+    stopped = fit_mod._levenberg_marquardt(_Line, np.array([3.0]), tr, None, 20, 1e-20)
+    return stopped, tr
+
+
+def test_lm_rejects_a_trial_point_where_the_rollout_goes_unstable(monkeypatch):
+    """A trial step into an unstable region is rejected (μ × 10, a shorter step), not
+    raised: the fit goes on from the last good point and still converges."""
+    from fpsi_jax.model.errors import SimulationError
+
+    def residuals(z):
+        if float(z[0]) < 2.5:                 # the first, full step lands at z = 2
+            if not hasattr(residuals, "blown"):
+                residuals.blown = True
+                raise SimulationError(1, 1e-4, 0, "solid position is not finite", "solid")
+        return np.ones((1, 1)), np.asarray(z, float) - 1.0
+
+    stopped, tr = _lm(monkeypatch, residuals)
+    assert tr.history[1]["trial_loss"] == math.inf
+    assert float(tr.best_z[0]) == pytest.approx(1.0, abs=1e-6)
+    assert stopped in ("loss_tol", "max_steps")
+
+
+def test_lm_stops_with_a_clear_reason_on_a_non_finite_jacobian(monkeypatch):
+    stopped, tr = _lm(monkeypatch, lambda z: (np.full((1, 1), np.nan),
+                                              np.asarray(z, float) - 1.0))
+    assert stopped.startswith("non-finite Jacobian at step 0")
+    assert len(tr.history) == 1
