@@ -1,6 +1,6 @@
 """The data files of the calibration examples (examples/calibrate/*.toml).
 
-    python experiments/calibrate_examples.py
+    python experiments/calibrate_examples.py [synthetic static damping sloshing]
 
 * cantilever_synthetic.csv  the tip of cantilever_synthetic.toml's own run (E = 10 MPa,
                             c = 4 1/s), sampled every millisecond
@@ -10,12 +10,16 @@
 * cantilever_damping.csv    a free vibration decaying with damping ratio ζ = 0.05 at the
                             model strip's own first-mode frequency (measured from
                             cantilever_damping.toml's run), y = A e^(−ζωt) sin(ω_d t)
+* sloshing_baffle_synthetic.csv  the baffle tip u_x of sloshing_baffle_synthetic.toml's
+                            own run (E = 4 MPa, c = 10 1/s) every millisecond, plus
+                            Gaussian noise of σ = 2 % of the largest |u_x| (seed 24)
 The gate's data are the experiment's (examples/data/antoci2007_tip.csv).
 """
 from __future__ import annotations
 
 import math
 import os
+import sys
 
 import numpy as np
 
@@ -91,8 +95,28 @@ def damping(zeta=0.05):
           ["t [s]", "tip.uy [mm]"], np.stack([ts, y * 1e3], 1))
 
 
+def noisy_record(sf, noise=0.02, seed=24, every=EVERY):
+    """(t, u_x + noise) of the file's probe in its own run, sampled every ``every`` s, the
+    noise Gaussian with σ = ``noise`` × the largest |u_x|."""
+    t, u = usercase.forward(sf, sf.scene.t_end)
+    ts = np.arange(1, math.floor(t[-1] / every + 1e-9) + 1) * every
+    ux = np.interp(ts, np.r_[0.0, t], np.r_[0.0, u[:, 0]])
+    rng = np.random.default_rng(seed)
+    return ts, ux + rng.normal(0.0, noise * np.abs(ux).max(), ux.shape)
+
+
+def sloshing(noise=0.02, seed=24):
+    sf = scenefile.load(os.path.join(EX, "sloshing_baffle_synthetic.toml"))
+    ts, y = noisy_record(sf, noise, seed)
+    write("sloshing_baffle_synthetic.csv",
+          f"Synthetic: the baffle tip of sloshing_baffle_synthetic.toml's own run (E = 4 MPa, "
+          f"c = 10 1/s), sampled every 1 ms,\nplus Gaussian noise of σ = {noise:g} × the "
+          f"largest |u_x| (numpy default_rng({seed})); experiments/calibrate_examples.py.",
+          ["t [s]", "tip.ux [mm]"], np.stack([ts, y * 1e3], 1))
+
+
 if __name__ == "__main__":
     os.makedirs(DATA, exist_ok=True)
-    synthetic()
-    static()
-    damping()
+    which = sys.argv[1:] or ["synthetic", "static", "damping", "sloshing"]
+    for name in which:
+        globals()[name]()

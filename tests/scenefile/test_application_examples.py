@@ -67,6 +67,7 @@ def test_slosh_bends_the_baffle_towards_the_low_side():
     assert abs(m.min()) > 5 * abs(m.max())
 
 
+@pytest.mark.slow             # ~70 s on 2 cores: make test-slow
 def test_lifted_gate_flushes_the_deposit_downstream():
     case = coarse("sediment_flushing", 0.3)
     res, p = run(case)
