@@ -51,7 +51,7 @@ def dam_break(*, column_width=0.146, column_height=0.292, tank_width=0.584,
     lo, hi = box.domain(headroom=0.5)
     return Scene(
         name="dam_break", params=Params(sph=sp), domain_lo=lo, domain_hi=hi,
-        v_max=v_max, fluid=fluid, boundary=box.boundary, t_end=t_end,
+        v_max=v_max, fluid=fluid, boundary=box.boundary, t_end=t_end, open_sides=("top",),
         options={"boundary_pressure": boundary_pressure, "delta_sph": delta_sph,
                  "artificial_viscosity": artificial_viscosity},
         builder_kwargs=dict(dx_boundary=dxb, h0=h, c0=c0))

@@ -135,7 +135,7 @@ def elastic_gate(*, water_width=0.1, water_height=0.14, gate_length=0.079,
                                             damping=damping),
                       bond=bp),
         domain_lo=lo, domain_hi=hi, v_max=v_max, fluid=fluid, boundary=boundary, solid=blk,
-        bonds=bonds, walls=box.walls, t_end=t_end,
+        bonds=bonds, walls=box.walls, t_end=t_end, open_sides=("top",),
         options={"fsi": coupling, "boundary_pressure": "extrapolated", "delta_sph": True,
                  "artificial_viscosity": True},
         builder_kwargs=dict(c0=c0, tip=np.nonzero(tip)[0].tolist()))

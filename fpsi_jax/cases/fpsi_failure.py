@@ -60,7 +60,7 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
         params=Params(sph=parts.sph, dem=parts.dem, bond=bp, fpi=FpiParams()),
         domain_lo=lo, domain_hi=hi, v_max=parts.v_max, fluid=parts.fluid,
         boundary=parts.tank.boundary, solid=solid, bonds=bonds, walls=parts.tank.walls,
-        t_end=t_end,
+        t_end=t_end, open_sides=("top",),
         options={"fpi": True, "fsi": "extrapolated", "voidage": voidage,
                  "boundary_pressure": "extrapolated", "artificial_viscosity": True,
                  "delta_sph": True, "eps_floor": eps_floor},

@@ -51,7 +51,7 @@ def hydrostatic_tank(*, depth=0.3, width=0.3, dx=0.005, dx_boundary=None, h_fact
     lo, hi = domain((0.0, 0.0), (width, height), layers * dxb + 2 * h)
     return Scene(
         name="hydrostatic_tank", params=Params(sph=sp), domain_lo=lo, domain_hi=hi,
-        v_max=v_max, fluid=fluid, boundary=boundary, t_end=t_end,
+        v_max=v_max, fluid=fluid, boundary=boundary, t_end=t_end, open_sides=("top",),
         options={"boundary_pressure": boundary_pressure, "delta_sph": delta_sph,
                  "artificial_viscosity": artificial_viscosity},
         builder_kwargs=dict(dx_boundary=dxb, c0=c0))

@@ -61,7 +61,7 @@ def sedimentation(*, width=0.02, height=0.06, d=0.0025, rho_grain=1250.0, rho_fl
         params=Params(sph=sp, dem=DemParams(kn=kn, ks=0.5 * kn, mu=friction, beta_n=beta_n,
                                             beta_s=beta_n), fpi=FpiParams()),
         domain_lo=lo, domain_hi=hi, v_max=v_max,
-        fluid=fluid, boundary=box.boundary, solid=grain, walls=box.walls, t_end=t_end,
+        fluid=fluid, boundary=box.boundary, solid=grain, walls=box.walls, t_end=t_end, open_sides=("top",),
         options={"fpi": True, "voidage": voidage, "delta_sph": True,
                  "boundary_pressure": "extrapolated", "x64": x64},
         builder_kwargs=dict(dx=dx, c0=c0))

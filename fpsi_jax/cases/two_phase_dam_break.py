@@ -123,7 +123,7 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
         params=Params(sph=parts.sph, dem=parts.dem, fpi=FpiParams()),
         domain_lo=(-pad, -pad), domain_hi=(tank_length + pad, max(1.2 * tank_height, top)),
         v_max=parts.v_max, fluid=parts.fluid, boundary=parts.tank.boundary, solid=solid,
-        walls=parts.tank.walls, t_end=t_end,
+        walls=parts.tank.walls, t_end=t_end, open_sides=("top",),
         options={"fpi": True, "fsi": "extrapolated", "voidage": voidage,
                  "boundary_pressure": "extrapolated", "artificial_viscosity": True,
                  "delta_sph": True, "eps_floor": eps_floor},

@@ -46,6 +46,35 @@ class NeighborConfig:
         return self.r_cut + self.skin
 
 
+@dataclass(frozen=True)
+class Parking:
+    """Where particles that left through an open side wait (static; Scene.open_sides).
+
+    A parked particle keeps its slot in every array but sits on a lattice of spacing
+    ``spacing`` (more than any list radius) in a band ``gap`` above the domain, which both
+    neighbour grids are extended to cover: it is nobody's neighbour, and nobody is its.
+    Slot k (fluid particle i: k = i; disc j: k = n_fluid + j) is at
+    (x0 + (k mod columns + ½)·spacing, y0 + (k div columns + ½)·spacing).
+    """
+
+    x0: float
+    y0: float
+    spacing: float
+    columns: int
+    rows: int
+
+    @property
+    def top(self) -> float:
+        return self.y0 + (self.rows + 1) * self.spacing
+
+    @staticmethod
+    def for_domain(lo, hi, n_slots: int, list_radius: float) -> "Parking":
+        s = 1.01 * list_radius
+        columns = max(1, int((hi[0] - lo[0]) // s))
+        rows = max(1, -(-n_slots // columns))
+        return Parking(x0=float(lo[0]), y0=float(hi[1]) + s, spacing=s, columns=columns,
+                       rows=rows)
+
 
 
 
@@ -91,6 +120,12 @@ class Physics:
       fpi_pressure         the grains' buoyancy: 'archimedes' (ρ_f V_p |g|, default) or
                            'gradient' (−V_p ∇P of the SPH pressure); see fpi.py
       lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)
+
+    The domain (health checks) and its open sides:
+      domain_lo, domain_hi the rectangle every particle in the computation stays inside
+      open_sides           sides (options.Side) a particle may leave through: it is then
+                           parked (``parking``) and counted, not an error
+      parking              :class:`Parking` of the scene with open sides, else None
     """
 
     n_fluid: int
@@ -123,6 +158,10 @@ class Physics:
     fpi_pressure: FpiPressure = FpiPressure.ARCHIMEDES
     eps_floor: float = 0.0
     lubrication: bool = True
+    domain_lo: tuple | None = None
+    domain_hi: tuple | None = None
+    open_sides: tuple = ()
+    parking: Parking | None = None
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
                "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
@@ -194,23 +233,32 @@ class Physics:
         floor = opts.get("eps_floor", 0.0)
         if not (isinstance(floor, (int, float)) and 0.0 <= floor < 1.0):
             raise ParameterError(f"eps_floor = {floor!r} out of range; allowed [0, 1)")
-        origin = tuple(map(float, scene.domain_lo))
-        box = tuple(float(h - l) for h, l in zip(scene.domain_hi, scene.domain_lo))
-        nb = None
+        lo = tuple(map(float, scene.domain_lo))
+        hi = tuple(map(float, scene.domain_hi))
+        box = tuple(float(h - l) for h, l in zip(hi, lo))
+        nb = dem_nb = None
         if scene.fluid is not None:
             h_all = [b.h for b in (scene.fluid, scene.boundary) if b is not None]
             h_max = float(max(np.max(h) for h in h_all)) * h_margin
             nb = NeighborConfig(r_cut=KERNEL_SUPPORT * h_max, skin=skin_factor * h_max / h_margin,
-                                origin=origin, box=box, capacity_multiplier=float(cap))
-        dem_nb = None
+                                origin=lo, box=box, capacity_multiplier=float(cap))
         if scene.solid is not None:
             r_max = float(np.max(scene.solid.radius))
             reach = 1.0
             if n_grain and opts.get("lubrication", True):
                 reach += float(scene.params.fpi.lub_cutoff)   # W24 acts up to a gap cut-off
-            dem_nb = NeighborConfig(r_cut=2.0 * r_max * reach, skin=dem_skin * r_max, origin=origin,
+            dem_nb = NeighborConfig(r_cut=2.0 * r_max * reach, skin=dem_skin * r_max, origin=lo,
                                     box=box, capacity_multiplier=float(cap))
-        return cls(n_fluid=scene.fluid.n if scene.fluid else 0,
+        sides = tuple(getattr(scene, "open_sides", ()) or ())
+        parking = None
+        if sides:
+            n_slots = sum(b.n for b in (scene.fluid, scene.solid) if b is not None)
+            radius = max(c.list_radius for c in (nb, dem_nb) if c is not None)
+            parking = Parking.for_domain(lo, hi, n_slots, radius)
+            grid = (box[0], parking.top - lo[1])       # the lists' grid covers the band
+            nb = nb and dataclasses.replace(nb, box=grid)
+            dem_nb = dem_nb and dataclasses.replace(dem_nb, box=grid)
+        return cls(domain_lo=lo, domain_hi=hi, open_sides=sides, parking=parking,n_fluid=scene.fluid.n if scene.fluid else 0,
                    n_boundary=scene.boundary.n if scene.boundary else 0,
                    neighbors=nb, wall_range=scene.wall_range(),
                    n_solid=scene.solid.n if scene.solid else 0,

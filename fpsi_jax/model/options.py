@@ -57,6 +57,14 @@ class FpiPressure(Choice):
     GRADIENT = "gradient"        # −V_p ∇P of the SPH pressure
 
 
+class Side(Choice):
+    """A side of the domain rectangle; an open one lets particles out (Scene.open_sides)."""
+    LEFT = "left"        # x < domain_lo[0]
+    RIGHT = "right"      # x >= domain_hi[0]
+    BOTTOM = "bottom"    # y < domain_lo[1]
+    TOP = "top"          # y >= domain_hi[1]
+
+
 def choose(kind: type[Choice], key: str, value) -> Choice:
     """``value`` (member or string) as a member of ``kind``; ParameterError naming ``key`` and
     the allowed values otherwise."""

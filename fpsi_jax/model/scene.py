@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import ParameterError
+from .options import Side, choose
 from .params import Params
 
 
@@ -141,6 +142,10 @@ class Scene:
     builder_kwargs       the physical parameters the builder was called with (for output)
     dt                   the time step asked for (``--set dt=…``); None: derived from the
                          stability bounds (simulate's own ``dt`` argument wins over both)
+    open_sides           sides of the domain particles may leave through ('left', 'right',
+                         'bottom', 'top'): a particle that crosses one is taken out of the
+                         computation and counted (solver.stages.exits); crossing a closed
+                         side stops the run with a diagnosis
     """
 
     name: str
@@ -157,6 +162,7 @@ class Scene:
     options: dict = field(default_factory=dict)
     builder_kwargs: dict = field(default_factory=dict)
     dt: float | None = None
+    open_sides: tuple = ()
 
     @property
     def fsi_coupled(self) -> bool:
@@ -178,6 +184,7 @@ class Scene:
     def validate(self) -> "Scene":
         """Check shapes, finiteness and that every particle lies inside the domain."""
         self.params.validate()
+        self.open_sides = open_sides(self.open_sides)
         lo, hi = np.asarray(self.domain_lo, float), np.asarray(self.domain_hi, float)
         if not np.all(hi > lo):
             raise ParameterError(f"domain_hi {tuple(hi)} must exceed domain_lo {tuple(lo)}")
@@ -260,6 +267,7 @@ class Scene:
             "domain_lo": list(self.domain_lo), "domain_hi": list(self.domain_hi),
             "v_max": self.v_max, "t_end": self.t_end, "dt_requested": self.dt,
             "options": _jsonable(self.options),
+            "open_sides": [str(s) for s in self.open_sides],
             "n_fluid": self.fluid.n if self.fluid else 0,
             "n_boundary": self.boundary.n if self.boundary else 0,
             "n_solid": self.solid.n if self.solid else 0,
@@ -270,6 +278,20 @@ class Scene:
             "n_grain": (int(self.solid.grain_indices().size)
                         if self.solid is not None and self.options.get("fpi") else 0),
         })
+
+
+def open_sides(sides) -> tuple:
+    """``sides`` (names or :class:`~fpsi_jax.model.options.Side` members) as a sorted tuple
+    of members without repeats; ParameterError for anything else."""
+    if isinstance(sides, str):
+        sides = (sides,)
+    try:
+        items = list(sides)
+    except TypeError:
+        raise ParameterError(f"open_sides = {sides!r} must be a list of sides; allowed: "
+                             f"{', '.join(m.value for m in Side)}") from None
+    chosen = {choose(Side, "open_sides", s) for s in items}
+    return tuple(m for m in Side if m in chosen)
 
 
 def _jsonable(d):

@@ -11,7 +11,10 @@ from .tree import pytree_dataclass
 @pytree_dataclass
 class FluidState:
     """SPH fluid: positions, velocities, densities, smoothing lengths, masses and the
-    acceleration and XSPH correction of the last evaluation (the leapfrog's first kick)."""
+    acceleration and XSPH correction of the last evaluation (the leapfrog's first kick).
+    ``t_out`` (n,), in scenes with open sides only: −1 while the particle is in the
+    computation, the time it left through an open side once it is parked (None: no open
+    side)."""
 
     x: Any
     v: Any
@@ -20,6 +23,7 @@ class FluidState:
     mass: Any
     acc: Any
     xsph: Any
+    t_out: Any = None
 
 
 @pytree_dataclass
@@ -40,7 +44,9 @@ class SolidState:
     co-rotational law needs it); ``acc``/``alpha`` are the linear and angular accelerations of
     the last evaluation (the leapfrog's first kick). ``shear`` is the contact shear-force
     history aligned with the contact neighbour list (n × K, keyed by the pair: it is
-    re-addressed on every rebuild), ``wall_shear`` the same for the walls (n × n_walls)."""
+    re-addressed on every rebuild), ``wall_shear`` the same for the walls (n × n_walls).
+    ``t_out`` as the fluid's: the time a disc left through an open side (−1: in; None:
+    the scene has no open side)."""
 
     x: Any
     v: Any
@@ -55,6 +61,7 @@ class SolidState:
     f_ext: Any
     shear: Any
     wall_shear: Any
+    t_out: Any = None
 
 
 @pytree_dataclass
@@ -114,7 +121,7 @@ class FpiState:
     force: Any
 
 
-BREAK_MODES = {0: "intact", 1: "tension", 2: "shear"}
+BREAK_MODES = {0: "intact", 1: "tension", 2: "shear", 3: "a disc left the domain"}
 
 
 # Status codes: what went wrong first, for the host's error message.
@@ -124,10 +131,10 @@ STATUS_CODES = {
     2: "velocity is not finite",
     3: "density is not finite",
     4: "density left the allowed band |rho/rho0 - 1| <= rho_tolerance",
-    5: "particle left the domain",
+    5: "particle left the domain through a closed side",
     6: "solid position is not finite",
     7: "solid velocity or rotation is not finite",
-    8: "solid particle left the domain",
+    8: "solid particle left the domain through a closed side",
 }
 
 

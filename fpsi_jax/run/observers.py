@@ -40,9 +40,19 @@ def mean_displacement(x0, idx, axis: int | None = None, phase: str = "solid"):
     return lambda s: pos(s) - jnp.asarray(start, getattr(s, phase).x.dtype)
 
 
+def in_computation(block):
+    """(n,) bool: the particles of a state block that have not left through an open side."""
+    t_out = getattr(block, "t_out", None)
+    return jnp.ones(block.x.shape[0], bool) if t_out is None else t_out < 0
+
+
 def max_coordinate(axis: int = 0, phase: str = "fluid"):
-    """observe(state) = the largest coordinate ``axis`` over ``phase`` (a surge front)."""
-    return lambda s: jnp.max(getattr(s, phase).x[:, axis])
+    """observe(state) = the largest coordinate ``axis`` over the particles of ``phase`` in
+    the computation (a surge front)."""
+    def fn(s):
+        b = getattr(s, phase)
+        return jnp.max(jnp.where(in_computation(b), b.x[:, axis], -jnp.inf))
+    return fn
 
 
 def max_speed(s):

@@ -44,6 +44,7 @@ import numpy as np
 
 from ..model.errors import ParameterError
 from ..physics import eos, kernels
+from . import observers
 
 KINDS = ("displacement", "force", "pressure", "water_level", "front", "bed_profile",
          "broken_bonds")
@@ -152,7 +153,7 @@ def water_level(name: str, scene, x: float, floor: float = 0.0) -> Probe:
 
     def fn(s):
         xf = s.fluid.x
-        near = jnp.abs(xf[:, 0] - x) <= half
+        near = (jnp.abs(xf[:, 0] - x) <= half) & observers.in_computation(s.fluid)
         top = jnp.max(jnp.where(near, xf[:, 1] + half, floor))
         return jnp.maximum(top, floor)
 
@@ -166,10 +167,13 @@ def front(name: str, scene, direction: str = "+x") -> Probe:
     if direction not in ("+x", "-x"):
         raise ParameterError(f"probe {name!r}: direction = {direction!r}; allowed '+x', '-x'")
     half = 0.5 * float(scene.params.sph.dp)
-    if direction == "+x":
-        fn = lambda s: jnp.max(s.fluid.x[:, 0]) + half
-    else:
-        fn = lambda s: jnp.min(s.fluid.x[:, 0]) - half
+    sign = 1.0 if direction == "+x" else -1.0
+
+    def fn(s):     # every particle gone: 0
+        inside = observers.in_computation(s.fluid)
+        edge = jnp.max(jnp.where(inside, sign * s.fluid.x[:, 0], -jnp.inf))
+        return jnp.where(jnp.any(inside), sign * edge + sign * half, 0.0)
+
     return Probe(name, "front", fn, ("x",), ("m",), {"direction": direction})
 
 

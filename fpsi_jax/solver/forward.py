@@ -27,12 +27,16 @@ def step(phys: Physics, state: State, params: Params) -> State:
     state = stages.clock(phys, params, state)
     if phys.has_solid:
         state = stages.discs(phys, params, state)             # DEM kick–drift–kick × n
+        if phys.open_sides:
+            state = stages.disc_exits(phys, params, state)    # out through an open side
         state = stages.check_discs(phys, params, state)
     if phys.has_fluid:
         state = stages.fluid_kick_drift(phys, params, state)  # v½, x'
         state = stages.fluid_neighbours(phys, params, state)
         state = stages.fluid_forces(phys, params, state)      # ρ', h', P', a', couplings
         state = stages.fluid_kick(phys, params, state)        # v'
+        if phys.open_sides:
+            state = stages.fluid_exits(phys, params, state)   # out through an open side
         state = stages.check_fluid(phys, params, state)
     return stages.mark_redo(phys, params, state)
 

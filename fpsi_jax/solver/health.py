@@ -11,9 +11,17 @@ from ..model.state import FluidState, SolidState, Status
 
 
 def _box(phys: Physics, dtype_):
+    """The domain rectangle (lo, hi) every particle in the computation stays inside."""
+    if phys.domain_lo is not None:
+        return jnp.asarray(phys.domain_lo, dtype_), jnp.asarray(phys.domain_hi, dtype_)
     nb = phys.neighbors or phys.dem_neighbors
     lo = jnp.asarray(nb.origin, dtype_)
     return lo, lo + jnp.asarray(nb.box, dtype_)
+
+
+def _in_computation(code, t_out):
+    """Codes of parked particles (t_out ≥ 0: they left through an open side) set to 0."""
+    return code if t_out is None else jnp.where(t_out >= 0, 0, code)
 
 
 def _first(status: Status, code, step) -> Status:
@@ -36,7 +44,7 @@ def check_fluid(phys: Physics, params: Params, fluid: FluidState, step, status: 
            jnp.where(~jnp.isfinite(fluid.rho), 3,
            jnp.where(jnp.abs(fluid.rho / rho0 - 1.0) > phys.rho_tolerance, 4,
            jnp.where(jnp.any((fluid.x < lo) | (fluid.x >= hi), axis=1), 5, 0)))))
-    return _first(status, code, step)
+    return _first(status, _in_computation(code, fluid.t_out), step)
 
 
 def check_solid(phys: Physics, solid: SolidState, step, status: Status) -> Status:
@@ -45,4 +53,4 @@ def check_solid(phys: Physics, solid: SolidState, step, status: Status) -> Statu
     code = jnp.where(~jnp.all(jnp.isfinite(solid.x), axis=1), 6,
            jnp.where(~(jnp.all(jnp.isfinite(solid.v), axis=1) & jnp.isfinite(solid.omega)), 7,
            jnp.where(jnp.any((solid.x < lo) | (solid.x >= hi), axis=1), 8, 0)))
-    return _first(status, code, step)
+    return _first(status, _in_computation(code, solid.t_out), step)

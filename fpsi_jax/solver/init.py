@@ -31,7 +31,8 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
             x=a(b.x), rho=a(b.rho), p=a(b.p), h=a(b.h), mass=a(b.mass))
         x = a(fl.x)
         fluid = FluidState(x=x, v=a(fl.v), rho=a(fl.rho), h=a(fl.h), mass=a(fl.mass),
-                           acc=z(x), xsph=z(x))
+                           acc=z(x), xsph=z(x),
+                           t_out=a(np.full(fl.n, -1.0)) if phys.open_sides else None)
         if phys.has_fsi:
             k = scene.solid.structure_indices()
             rho0 = float(scene.params.sph.rho0)
@@ -56,7 +57,8 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
             x=x, v=a(so.v), omega=jnp.where(fixed, 0.0, a(so.omega)),
             theta=a(np.zeros(so.n)), acc=z(x), alpha=a(np.zeros(so.n)), radius=a(so.radius),
             mass=a(so.mass), inertia=a(so.inertia), fixed=fixed, f_ext=a(so.f_ext),
-            shear=jnp.zeros(snbrs.idx.shape, dt_), wall_shear=jnp.zeros((so.n, n_w), dt_))
+            shear=jnp.zeros(snbrs.idx.shape, dt_), wall_shear=jnp.zeros((so.n, n_w), dt_),
+            t_out=a(np.full(so.n, -1.0)) if phys.open_sides else None)
         if scene.walls is not None:
             walls = WallState(a=a(scene.walls.a), b=a(scene.walls.b))
         if scene.bonds is not None:

@@ -48,7 +48,7 @@ from ..model.state import State
 from ..physics import bonds as bonds_law
 from ..physics import boundary, dem, eos, fpi, fsi, kernels, sph
 from ..physics.pairs import Pairs, pairs
-from . import health, neighbors
+from . import exits, health, neighbors
 
 
 def dtype(phys: Physics):
@@ -205,6 +205,13 @@ def discs(phys: Physics, params: Params, state: State) -> State:
             part = jax.lax.fori_loop(0, n, one, part)
     return state.replace(solid=part.solid, bonds=part.bonds, solid_nbrs=part.solid_nbrs,
                          status=part.status)
+
+
+def disc_exits(phys: Physics, params: Params, state: State) -> State:
+    """Discs that crossed an open side leave the computation (solver.exits)."""
+    with jax.named_scope("step.disc_exits"):
+        solid, bonds = exits.park_discs(phys, state.solid, state.bonds, state.t)
+    return state.replace(solid=solid, bonds=bonds)
 
 
 def check_discs(phys: Physics, params: Params, state: State) -> State:
@@ -443,6 +450,12 @@ def fluid_kick(phys: Physics, params: Params, state: State) -> State:
     f = state.fluid
     with jax.named_scope("step.kick"):
         return state.replace(fluid=f.replace(v=f.v + 0.5 * params.dt * f.acc))
+
+
+def fluid_exits(phys: Physics, params: Params, state: State) -> State:
+    """Fluid particles that crossed an open side leave the computation (solver.exits)."""
+    with jax.named_scope("step.fluid_exits"):
+        return state.replace(fluid=exits.park_fluid(phys, state.fluid, state.t))
 
 
 def check_fluid(phys: Physics, params: Params, state: State) -> State:

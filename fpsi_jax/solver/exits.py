@@ -1,0 +1,76 @@
+"""Open sides: particles that leave the domain through one are taken out of the computation.
+
+As DualSPHysics does with its excluded particles, a particle (fluid or disc) whose position
+crosses an open side of the domain (``Scene.open_sides``) is *parked*: it keeps its slot in
+every array (the compiled shapes never change) but is moved to its own spot on the parking
+lattice above the domain (:class:`~fpsi_jax.model.config.Parking`), farther than any list
+radius from everything, so it drops out of every neighbour list and pair sum; its velocity
+and accelerations are zeroed and kept so. ``t_out`` records when it left (−1: still in);
+its mass is the scene's, so the mass that left is Σ m over ``t_out ≥ 0``. A disc that leaves
+becomes kinematic (``fixed``) and its intact bonds break with mode 3. Crossing a closed side
+stays an error (solver.health). Scenes without an open side trace none of this.
+"""
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from ..model.config import Parking, Physics
+from ..model.options import Side
+
+
+def crossed_open_side(phys: Physics, x):
+    """(n,) bool: the position lies beyond one of the domain's open sides."""
+    lo = jnp.asarray(phys.domain_lo, x.dtype)
+    hi = jnp.asarray(phys.domain_hi, x.dtype)
+    beyond = {Side.LEFT: x[:, 0] < lo[0], Side.RIGHT: x[:, 0] >= hi[0],
+              Side.BOTTOM: x[:, 1] < lo[1], Side.TOP: x[:, 1] >= hi[1]}
+    out = jnp.zeros(x.shape[0], bool)
+    for side in phys.open_sides:
+        out = out | beyond[side]
+    return out
+
+
+def park_positions(parking: Parking, first_slot: int, n: int, dtype):
+    """(n, 2) parking spots of slots first_slot … first_slot + n − 1."""
+    k = jnp.arange(n) + first_slot
+    s = parking.spacing
+    col = (k % parking.columns).astype(dtype)
+    row = (k // parking.columns).astype(dtype)
+    return jnp.stack([parking.x0 + (col + 0.5) * s, parking.y0 + (row + 0.5) * s], axis=1)
+
+
+def leave(phys: Physics, x, t_out, t):
+    """(t_out updated, parked mask): particles in the computation that crossed an open
+    side at time ``t`` get t_out = t."""
+    new = (t_out < 0) & crossed_open_side(phys, x)
+    t_out = jnp.where(new, t, t_out)
+    return t_out, t_out >= 0
+
+
+def park_fluid(phys: Physics, fluid, t):
+    """The fluid with the particles that crossed an open side parked (slots 0 … n − 1)."""
+    t_out, out = leave(phys, fluid.x, fluid.t_out, t)
+    spot = park_positions(phys.parking, 0, fluid.x.shape[0], fluid.x.dtype)
+    o2 = out[:, None]
+    return fluid.replace(x=jnp.where(o2, spot, fluid.x), v=jnp.where(o2, 0.0, fluid.v),
+                         acc=jnp.where(o2, 0.0, fluid.acc), xsph=jnp.where(o2, 0.0, fluid.xsph),
+                         t_out=t_out)
+
+
+def park_discs(phys: Physics, solid, bonds, t):
+    """Discs that crossed an open side parked (slots n_fluid …), made kinematic at rest,
+    and their intact bonds broken (mode 3)."""
+    t_out, out = leave(phys, solid.x, solid.t_out, t)
+    spot = park_positions(phys.parking, phys.n_fluid, solid.x.shape[0], solid.x.dtype)
+    o2 = out[:, None]
+    solid = solid.replace(x=jnp.where(o2, spot, solid.x), v=jnp.where(o2, 0.0, solid.v),
+                          acc=jnp.where(o2, 0.0, solid.acc), omega=jnp.where(out, 0.0, solid.omega),
+                          alpha=jnp.where(out, 0.0, solid.alpha), fixed=solid.fixed | out,
+                          t_out=t_out)
+    if bonds is not None:
+        cut = bonds.intact & (out[bonds.i] | out[bonds.j])
+        bonds = bonds.replace(intact=bonds.intact & ~cut,
+                              t_break=jnp.where(cut, t, bonds.t_break),
+                              mode=jnp.where(cut, 3, bonds.mode))
+    return solid, bonds
+
