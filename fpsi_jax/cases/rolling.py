@@ -18,7 +18,8 @@ from .registry import Record, scene, validation
 def rolling(*, radius=0.01, rho=2700.0, speed=1.0, mu=0.3, kn=1.0e5, ks=5.0e4, beta_n=0.3,
             beta_s=0.3, t_end=0.3) -> Scene:
     """A disc launched along a floor at ``speed`` without spin; Coulomb friction makes it roll.
-    Rigid-body answer: rolling starts at t = v0/(3μg) with v = (2/3) v0 (J = ½mR²)."""
+    Rigid-body answer: rolling starts at t = v0/(3μg) with v = (2/3) v0 (J = ½mR²). The
+    floor is as long as the disc rolls in ``t_end``; its far end is an open side."""
     check_positive(radius=radius, rho=rho, speed=speed, mu=mu, kn=kn, ks=ks, t_end=t_end)
     blk = disc_block(np.array([[0.05, radius]]), radius, rho, v=np.array([[speed, 0.0]]))
     overlap = blk.mass[0] * 9.81 / kn                 # start at rest in the normal direction
@@ -29,7 +30,8 @@ def rolling(*, radius=0.01, rho=2700.0, speed=1.0, mu=0.3, kn=1.0e5, ks=5.0e4, b
         name="rolling", params=Params(dem=DemParams(kn=kn, ks=ks, mu=mu, beta_n=beta_n,
                                                     beta_s=beta_s)),
         domain_lo=(-0.01, -0.01), domain_hi=(length + 0.01, 0.1), v_max=speed, solid=blk,
-        walls=walls, t_end=t_end, options={"x64": True})
+        walls=walls, t_end=t_end, options={"x64": True},
+        open_sides=("right",))          # the lane ends: a disc rolling past it leaves
 
 
 @validation("rolling", "disc sliding without spin (μ = 0.3) ends rolling at 2/3 v0 (1 %)")

@@ -36,4 +36,5 @@ def wall_impact(*, radius=0.005, rho=2700.0, speed=10.0, kn=1.0e8, beta=0.1, ang
                                           dem=DemParams(kn=kn, ks=0.0, mu=0.0, beta_n=beta)),
         domain_lo=(-0.01, -0.01), domain_hi=(0.11 + speed * t_end, 0.05 + speed * t_end),
         v_max=speed, solid=blk, walls=walls, t_end=t_end, options={"x64": True},
+        open_sides=("right", "top"),    # a disc that bounces off the end of the floor leaves
         builder_kwargs=dict(t_end=t_end))

@@ -481,7 +481,8 @@ def compose(spec: dict, path: str) -> SceneFile:
     scene = Scene(name=name, params=params, domain_lo=tuple(lo), domain_hi=tuple(hi),
                   v_max=v_max, fluid=fluid, boundary=boundary, solid=solid, bonds=bonds,
                   walls=walls, t_end=sc["t_end"], options=options,
-                  builder_kwargs={"scene_file": os.path.abspath(path)}, dt=sc["dt"])
+                  builder_kwargs={"scene_file": os.path.abspath(path)}, dt=sc["dt"],
+                  open_sides=tuple(x for x in sc["open_sides"] if x != "none"))
     try:
         scene.validate()
     except Exception as e:

@@ -74,7 +74,11 @@ table("scene", False, "What is run, for how long, and where.",
       Key("domain", "box", "m", None, "rectangle every particle must stay inside (default: "
           "the tank with `headroom` above it, grown to hold every body)"),
       Key("headroom", "float", "", 0.5, "room above the tank walls, × tank height",
-          lo=0.0))
+          lo=0.0),
+      Key("open_sides", "list", "", ["top"], "sides of the domain particles may leave "
+          "through (left, right, bottom, top; \"none\": every side closed): a particle that "
+          "crosses one is taken out of the computation and counted, one that crosses a closed "
+          "side stops the run", choices=("left", "right", "bottom", "top", "none")))
 
 table("fluid", False, "The (single) SPH fluid: material, resolution and numerics.",
       _pos("density", "kg/m³", 1000.0, "reference density ρ0"),
