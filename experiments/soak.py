@@ -25,7 +25,6 @@ import os
 import sys
 import time
 
-import jax.numpy as jnp
 import numpy as np
 
 from fpsi_jax import cases
@@ -46,34 +45,13 @@ COARSE = {
 }
 
 
-def energy(params):
-    """observe(state) -> (E, max |v|) of the particles in the computation (see module doc)."""
-    g = jnp.asarray(params.gravity)
-
-    def fn(s):
-        e, vmax = 0.0, 0.0
-        for b in (s.fluid, s.solid):
-            if b is None:
-                continue
-            on = observers.in_computation(b)
-            m = jnp.where(on, b.mass, 0.0)
-            v2 = jnp.sum(b.v * b.v, axis=1)
-            e = e + jnp.sum(0.5 * m * v2) - jnp.sum(m * (b.x @ g))
-            if hasattr(b, "omega"):
-                e = e + jnp.sum(jnp.where(on, 0.5 * b.inertia * b.omega ** 2, 0.0))
-            vmax = jnp.maximum(vmax, jnp.sqrt(jnp.max(jnp.where(on, v2, 0.0))))
-        return jnp.stack([e, vmax])
-
-    return fn
-
-
 def soak(name, scene, factor):
     t_end = factor * scene.t_end
     row = {"scene": name, "particles": scene.n_particles, "t_end_default": scene.t_end,
            "t_target": t_end, "open_sides": " ".join(map(str, scene.open_sides)) or "-"}
     t0 = time.perf_counter()
     try:
-        res = simulate(scene, t_end=t_end, progress=False, observe=energy(scene.params))
+        res = simulate(scene, t_end=t_end, progress=False, observe=observers.energy_and_speed(scene.params.gravity))
         obs = np.asarray(res.observations, float)
         row.update(t_reached=res.n_steps * float(res.params.dt), status="ok", message="")
         state = res.state

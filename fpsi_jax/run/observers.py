@@ -59,3 +59,27 @@ def max_speed(s):
     """observe(state) = the largest particle speed of the phases the state has."""
     return jnp.max(jnp.stack([jnp.max(jnp.linalg.norm(b.v, axis=1))
                               for b in (s.fluid, s.solid) if b is not None]))
+
+
+def energy_and_speed(gravity):
+    """observe(state) = (E, max |v|) over the particles in the computation (fluid and
+    discs): E = Σ ½ m |v|² + Σ ½ I ω² − Σ m g·x, the mechanical energy per unit thickness
+    (J/m; the bonds' elastic energy and the fluid's compression energy are not included),
+    and the largest particle speed."""
+    g = jnp.asarray(gravity)
+
+    def fn(s):
+        e, vmax = 0.0, 0.0
+        for b in (s.fluid, s.solid):
+            if b is None:
+                continue
+            on = in_computation(b)
+            m = jnp.where(on, b.mass, 0.0)
+            v2 = jnp.sum(b.v * b.v, axis=1)
+            e = e + jnp.sum(0.5 * m * v2) - jnp.sum(m * (b.x @ g.astype(b.x.dtype)))
+            if hasattr(b, "omega"):
+                e = e + jnp.sum(jnp.where(on, 0.5 * b.inertia * b.omega ** 2, 0.0))
+            vmax = jnp.maximum(vmax, jnp.sqrt(jnp.max(jnp.where(on, v2, 0.0))))
+        return jnp.stack([e, vmax])
+
+    return fn
