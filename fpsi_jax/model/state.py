@@ -135,6 +135,7 @@ STATUS_CODES = {
     6: "solid position is not finite",
     7: "solid velocity or rotation is not finite",
     8: "solid particle left the domain through a closed side",
+    9: "solid particle crossed a wall",
 }
 
 

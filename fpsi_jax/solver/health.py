@@ -54,3 +54,27 @@ def check_solid(phys: Physics, solid: SolidState, step, status: Status) -> Statu
            jnp.where(~(jnp.all(jnp.isfinite(solid.v), axis=1) & jnp.isfinite(solid.omega)), 7,
            jnp.where(jnp.any((solid.x < lo) | (solid.x >= hi), axis=1), 8, 0)))
     return _first(status, _in_computation(code, solid.t_out), step)
+
+
+def _orient(a, b, c):
+    """Sign of the turn a → b → c (> 0 counter-clockwise), broadcast over leading axes."""
+    return ((b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1])
+            - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0]))
+
+
+def crossed_walls(x0, x1, a, b):
+    """(n,) bool: the path x0 → x1 of each disc crosses one of the wall segments a → b
+    (proper crossing: the end points lie strictly on opposite sides of the wall's line and
+    the wall's end points strictly on opposite sides of the path)."""
+    p0, p1 = x0[:, None, :], x1[:, None, :]
+    wa, wb = a[None], b[None]
+    side0, side1 = _orient(wa, wb, p0), _orient(wa, wb, p1)
+    ends_a, ends_b = _orient(p0, p1, wa), _orient(p0, p1, wb)
+    return jnp.any((side0 * side1 < 0) & (ends_a * ends_b < 0), axis=1)
+
+
+def check_wall_crossings(solid: SolidState, x0, a, b, step, status: Status) -> Status:
+    """Health code 9: a free disc whose path over the step, from ``x0`` to its position
+    now, crossed a DEM wall (a contact spring too soft for the impact lets it tunnel)."""
+    code = jnp.where(crossed_walls(x0, solid.x, a, b) & ~solid.fixed, 9, 0)
+    return _first(status, _in_computation(code, solid.t_out), step)

@@ -203,8 +203,12 @@ def discs(phys: Physics, params: Params, state: State) -> State:
     else:
         with jax.named_scope("step.dem_substeps"):
             part = jax.lax.fori_loop(0, n, one, part)
+    status = part.status
+    if state.walls is not None:
+        status = health.check_wall_crossings(part.solid, state.solid.x, state.walls.a,
+                                             state.walls.b, state.step, status)
     return state.replace(solid=part.solid, bonds=part.bonds, solid_nbrs=part.solid_nbrs,
-                         status=part.status)
+                         status=status)
 
 
 def disc_exits(phys: Physics, params: Params, state: State) -> State:
