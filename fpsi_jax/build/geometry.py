@@ -90,13 +90,17 @@ def tank_walls(width, height, dxb, layers):
 
 
 def box_walls(x0, y0, x1, y1, top=False):
-    """Line walls of an open-top box: floor, left and right (and the lid if ``top``)."""
+    """Line walls of an open-top box: floor, left and right (and the lid if ``top``),
+    each active on the inside only (WallBlock.side)."""
     a = [(x0, y0), (x0, y0), (x1, y0)]
     b = [(x1, y0), (x0, y1), (x1, y1)]
+    side = [1.0, -1.0, 1.0]                # inside: left of the floor and the right wall
     if top:
         a.append((x0, y1))
         b.append((x1, y1))
-    return WallBlock(a=np.asarray(a, float), b=np.asarray(b, float))
+        side.append(-1.0)
+    return WallBlock(a=np.asarray(a, float), b=np.asarray(b, float),
+                     side=np.asarray(side))
 
 
 def inside_polygon(x, vertices) -> np.ndarray:

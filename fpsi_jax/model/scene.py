@@ -121,10 +121,23 @@ class BondBlock:
 
 @dataclass
 class WallBlock:
-    """Fixed DEM line-segment walls from ``a[k]`` to ``b[k]`` (W5)."""
+    """Fixed DEM line-segment walls from ``a[k]`` to ``b[k]`` (W5).
+
+    ``side`` (w,) says which side of each wall is active, as PFC's walls have an active
+    side: +1 the left of a → b (the normal (−t_y, t_x), t along a → b), −1 the right, 0 both
+    (a thin plate). A disc whose centre has gone past a one-sided wall's line (a contact
+    spring too soft for the impact) is still pushed back out, with overlap R + depth, while
+    the depth is under 2R; None: every wall two-sided."""
 
     a: np.ndarray
     b: np.ndarray
+    side: np.ndarray | None = None
+
+    def sides(self) -> np.ndarray:
+        """(w,) the active sides (0 where ``side`` is None)."""
+        if self.side is None:
+            return np.zeros(self.n)
+        return np.broadcast_to(np.asarray(self.side, float), (self.n,)).copy()
 
     @property
     def n(self) -> int:
@@ -236,6 +249,8 @@ class Scene:
                 raise ParameterError("walls contain non-finite end points")
             if np.any(np.linalg.norm(b - a, axis=1) <= 0):
                 raise ParameterError("a wall segment has zero length (a == b)")
+            if not np.all(np.isin(self.walls.sides(), (-1.0, 0.0, 1.0))):
+                raise ParameterError("walls.side out of range; allowed -1, 0, 1")
         return self
 
     def _validate_bonds(self):

@@ -84,10 +84,12 @@ class BondState:
 
 @pytree_dataclass
 class WallState:
-    """DEM line-segment walls a[k] → b[k] (fixed)."""
+    """DEM line-segment walls a[k] → b[k] (fixed) and their active sides (w,): +1 the left
+    of a → b, −1 the right, 0 both (scene.WallBlock)."""
 
     a: Any
     b: Any
+    side: Any = None
 
 
 @pytree_dataclass

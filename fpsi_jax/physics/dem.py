@@ -63,15 +63,21 @@ def linear_contact(kn, ks, mu, beta_n, beta_s, delta, vn, vs, shear, m, dt):
             jnp.where(touch, fs, zero))
 
 
-def _contact_sum(dp, dx, valid, ra, rb, dv, omega_a, omega_b, m, shear, dt):
-    """The contact law for every (row, slot) pair, summed over slots onto the row body A.
-
-    dx = x_B − x_A, dv = v_B − v_A (n, K, 2); ra, rb radii (rb = 0 for a wall). Returns
-    (force (n, 2), torque (n,), new history (n, K), overlap (n, K))."""
+def pair_geometry(dx, valid, ra, rb):
+    """(n, δ) of pairs A–B from dx = x_B − x_A: the unit normal A → B and the overlap
+    δ = R_A + R_B − |dx| (−1 where ``valid`` is False or the centres coincide)."""
     d = _safe_norm(dx)
     nrm = dx / jnp.where(d > 0, d, 1.0)[..., None]
+    return nrm, jnp.where(valid & (d > 0), ra + rb - d, -1.0)
+
+
+def _contact_sum(dp, nrm, delta, ra, rb, dv, omega_a, omega_b, m, shear, dt):
+    """The contact law for every (row, slot) pair with normal ``nrm`` (A → B) and overlap
+    ``delta``, summed over slots onto the row body A.
+
+    dv = v_B − v_A (n, K, 2); ra, rb radii (rb = 0 for a wall). Returns
+    (force (n, 2), torque (n,), new history (n, K), overlap (n, K))."""
     t = perp(nrm)
-    delta = jnp.where(valid & (d > 0), ra + rb - d, -1.0)
     la, lb = ra - 0.5 * delta, rb - 0.5 * delta
     vn = jnp.sum(dv * nrm, axis=-1)
     vs = jnp.sum(dv * t, axis=-1) - omega_b * lb - omega_a * la
@@ -90,8 +96,9 @@ def disc_contacts(dp, x, v, omega, radius, mass, fixed, idx, shear, dt):
     valid = idx < n
     j = jnp.where(valid, idx, 0)
     m = reduced_mass(mass[:, None], mass[j], fixed[:, None], fixed[j])
-    return _contact_sum(dp, x[j] - x[:, None, :], valid, radius[:, None], radius[j],
-                        v[j] - v[:, None, :], omega[:, None], omega[j], m, shear, dt)
+    nrm, delta = pair_geometry(x[j] - x[:, None, :], valid, radius[:, None], radius[j])
+    return _contact_sum(dp, nrm, delta, radius[:, None], radius[j], v[j] - v[:, None, :],
+                        omega[:, None], omega[j], m, shear, dt)
 
 
 def wall_geometry(x, a, b):
@@ -102,11 +109,45 @@ def wall_geometry(x, a, b):
     return c - x[:, None, :]
 
 
-def wall_contacts(dp, x, v, omega, radius, mass, a, b, shear, dt):
+def inward_normals(a, b, side):
+    """(W, 2) unit normals pointing into each wall's active side: side × (−t_y, t_x), t the
+    unit vector along a → b (zero for two-sided walls)."""
+    t = (b - a) / jnp.linalg.norm(b - a, axis=-1, keepdims=True)
+    return side[:, None] * perp(t)
+
+
+def wall_pair_geometry(x, radius, a, b, side=None):
+    """(n, δ) of every disc–wall pair (n, W): the normal disc → wall and the overlap.
+
+    Two-sided walls: the closest point of the segment, δ = R − |c − x|. A one-sided wall
+    (``side`` ±1, scene.WallBlock) measures the disc's signed distance s = (x − a)·n_in
+    from its line while the centre projects onto the segment: n = −n_in and δ = R − s,
+    which keeps growing (R + depth) once the centre has gone past the line, so a disc
+    driven through by an impact its contact spring cannot stop is pushed back out; past
+    a depth of 2R the disc counts as on the other side (no contact)."""
+    nrm, delta = pair_geometry(wall_geometry(x, a, b), True, radius[:, None], 0.0)
+    if side is None:
+        return nrm, delta
+    n_in = inward_normals(a, b, side)                                   # (W, 2)
+    ab = b - a
+    rel = x[:, None, :] - a[None]
+    u = jnp.sum(rel * ab[None], axis=-1) / jnp.sum(ab * ab, axis=-1)    # along the segment
+    sd = jnp.sum(rel * n_in[None], axis=-1)                             # signed distance
+    r = radius[:, None]
+    flat = (side[None] != 0) & (u >= 0.0) & (u <= 1.0) & (sd > -2.0 * r)
+    nrm = jnp.where(flat[..., None], -n_in[None], nrm)
+    delta = jnp.where(flat, r - sd, jnp.where(side[None] != 0, jnp.where(sd > 0, delta, -1.0),
+                                              delta))
+    return nrm, delta
+
+
+def wall_contacts(dp, x, v, omega, radius, mass, a, b, shear, dt, side=None):
     """Disc–wall contacts (W5): the wall is body B, at rest, with zero radius and infinite
-    mass. Returns (force (n, 2), torque (n,), new history (n, W), overlap (n, W))."""
+    mass; ``side`` the walls' active sides (None: all two-sided; :func:`wall_pair_geometry`).
+    Returns (force (n, 2), torque (n,), new history (n, W), overlap (n, W))."""
     shape = shear.shape
-    return _contact_sum(dp, wall_geometry(x, a, b), True, radius[:, None], 0.0,
+    nrm, delta = wall_pair_geometry(x, radius, a, b, side)
+    return _contact_sum(dp, nrm, delta, radius[:, None], 0.0,
                         jnp.broadcast_to(-v[:, None, :], shape + (2,)), omega[:, None], 0.0,
                         jnp.broadcast_to(mass[:, None], shape), shear, dt)
 
@@ -141,5 +182,5 @@ def kinetic_energy(v, omega, mass, inertia):
     return 0.5 * jnp.sum(mass * jnp.sum(v * v, axis=-1)) + 0.5 * jnp.sum(inertia * omega ** 2)
 
 
-__all__ = ["perp", "reduced_mass", "linear_contact", "disc_contacts", "wall_contacts",
-           "wall_geometry", "remap_history", "local_damping", "viscous_damping", "load_factor", "kinetic_energy"]
+__all__ = ["perp", "reduced_mass", "linear_contact", "pair_geometry", "disc_contacts",
+           "wall_contacts", "wall_geometry", "wall_pair_geometry", "inward_normals", "remap_history", "local_damping", "viscous_damping", "load_factor", "kinetic_energy"]

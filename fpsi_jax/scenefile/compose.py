@@ -348,7 +348,7 @@ def compose(spec: dict, path: str) -> SceneFile:
     # fixed SPH particles and DEM walls
     has_discs = solid is not None
     tank = spec.get("tank")
-    xb_parts, dx_parts, wall_a, wall_b = [], [], [], []
+    xb_parts, dx_parts, wall_a, wall_b, wall_side = [], [], [], [], []
     pad = 0.0
     hb = None
     if tank is not None:
@@ -370,6 +370,7 @@ def compose(spec: dict, path: str) -> SceneFile:
             w = box_walls(0.0, 0.0, tank["width"], tank["height"], top=tank["lid"])
             wall_a.append(w.a)
             wall_b.append(w.b)
+            wall_side.append(w.sides())         # the tank's walls act on the inside
     for i, ob in enumerate(spec.get("obstacle", [])):
         how = _shape(path, "obstacle", ob, i, ("box", "polygon", "polyline"))
         if fluid is not None:
@@ -389,6 +390,7 @@ def compose(spec: dict, path: str) -> SceneFile:
             a, b = _outline(ob)
             wall_a.append(a)
             wall_b.append(b)
+            wall_side.append(np.zeros(len(a)))  # an obstacle's outline acts on both sides
     boundary = None
     if xb_parts:
         blocks = [boundary_block(x, sp.rho0, d, hb) for x, d in zip(xb_parts, dx_parts)]
@@ -398,8 +400,8 @@ def compose(spec: dict, path: str) -> SceneFile:
             cat = lambda k: np.concatenate([getattr(b, k) for b in blocks])
             boundary = type(blocks[0])(x=cat("x"), rho=cat("rho"), p=cat("p"),
                                        mass=cat("mass"), h=cat("h"))
-    walls = (WallBlock(a=np.concatenate(wall_a), b=np.concatenate(wall_b))
-             if wall_a and has_discs else None)
+    walls = (WallBlock(a=np.concatenate(wall_a), b=np.concatenate(wall_b),
+                       side=np.concatenate(wall_side)) if wall_a and has_discs else None)
 
     # parameters
     structures = spec.get("structure", [])

@@ -8,6 +8,7 @@ import jax.numpy as jnp
 from ..model.config import Physics
 from ..model.params import Params
 from ..model.state import FluidState, SolidState, Status
+from ..physics import dem
 
 
 def _box(phys: Physics, dtype_):
@@ -62,19 +63,28 @@ def _orient(a, b, c):
             - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0]))
 
 
-def crossed_walls(x0, x1, a, b):
+def crossed_walls(x0, x1, a, b, shift=None):
     """(n,) bool: the path x0 → x1 of each disc crosses one of the wall segments a → b
     (proper crossing: the end points lie strictly on opposite sides of the wall's line and
-    the wall's end points strictly on opposite sides of the path)."""
+    the wall's end points strictly on opposite sides of the path). ``shift`` (n, W, 2)
+    moves each disc's path per wall (to test against a wall moved by −shift)."""
     p0, p1 = x0[:, None, :], x1[:, None, :]
+    if shift is not None:
+        p0, p1 = p0 + shift, p1 + shift
     wa, wb = a[None], b[None]
     side0, side1 = _orient(wa, wb, p0), _orient(wa, wb, p1)
     ends_a, ends_b = _orient(p0, p1, wa), _orient(p0, p1, wb)
     return jnp.any((side0 * side1 < 0) & (ends_a * ends_b < 0), axis=1)
 
 
-def check_wall_crossings(solid: SolidState, x0, a, b, step, status: Status) -> Status:
+def check_wall_crossings(solid: SolidState, x0, walls, step, status: Status) -> Status:
     """Health code 9: a free disc whose path over the step, from ``x0`` to its position
-    now, crossed a DEM wall (a contact spring too soft for the impact lets it tunnel)."""
-    code = jnp.where(crossed_walls(x0, solid.x, a, b) & ~solid.fixed, 9, 0)
+    now, went through a DEM wall: across a two-sided wall's line, or deeper than 2R past
+    a one-sided wall's line (where that wall stops pushing it back; dem.wall_pair_geometry)."""
+    shift = None
+    if walls.side is not None:
+        n_in = dem.inward_normals(walls.a, walls.b, walls.side)
+        shift = 2.0 * solid.radius[:, None, None] * n_in[None]
+    crossed = crossed_walls(x0, solid.x, walls.a, walls.b, shift)
+    code = jnp.where(crossed & ~solid.fixed, 9, 0)
     return _first(status, _in_computation(code, solid.t_out), step)

@@ -60,7 +60,8 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
             shear=jnp.zeros(snbrs.idx.shape, dt_), wall_shear=jnp.zeros((so.n, n_w), dt_),
             t_out=a(np.full(so.n, -1.0)) if phys.open_sides else None)
         if scene.walls is not None:
-            walls = WallState(a=a(scene.walls.a), b=a(scene.walls.b))
+            walls = WallState(a=a(scene.walls.a), b=a(scene.walls.b),
+                              side=a(scene.walls.sides()))
         if scene.bonds is not None:
             i = jnp.asarray(scene.bonds.i, jnp.int32)
             j = jnp.asarray(scene.bonds.j, jnp.int32)

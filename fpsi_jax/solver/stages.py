@@ -120,7 +120,7 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
         with jax.named_scope("dem.walls"):
             fw, tw, wall_shear, _ = dem.wall_contacts(dp, x, v, omega, s.radius, s.mass,
                                                       state.walls.a, state.walls.b,
-                                                      wall_shear, dt)
+                                                      wall_shear, dt, state.walls.side)
         force, torque = force + fw, torque + tw
     if b is not None:
         with jax.named_scope("bonds"):
@@ -205,8 +205,8 @@ def discs(phys: Physics, params: Params, state: State) -> State:
             part = jax.lax.fori_loop(0, n, one, part)
     status = part.status
     if state.walls is not None:
-        status = health.check_wall_crossings(part.solid, state.solid.x, state.walls.a,
-                                             state.walls.b, state.step, status)
+        status = health.check_wall_crossings(part.solid, state.solid.x, state.walls,
+                                             state.step, status)
     return state.replace(solid=part.solid, bonds=part.bonds, solid_nbrs=part.solid_nbrs,
                          status=status)
 

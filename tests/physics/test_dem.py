@@ -275,3 +275,50 @@ def test_viscous_damping_formula():
     """F = −c m v (and M = −c J ω alike)."""
     np.testing.assert_allclose(np.asarray(dem.viscous_damping(2.0, 3.0, A(1.0, -4.0))),
                                [-6.0, 24.0], rtol=RTOL)
+
+
+# --- one-sided walls (scene.WallBlock.side) --------------------------------------------------
+def floor_contacts(x, side, v=None, kn=1.0e5):
+    """wall_contacts of discs of radius R at ``x`` with the floor (0, 0) → (0.1, 0) whose
+    active side is ``side`` (+1: above, the left of a → b)."""
+    x = np.asarray(x, float)
+    k = x.shape[0]
+    v = np.zeros((k, 2)) if v is None else np.asarray(v, float)
+    out = dem.wall_contacts(DemParams(kn=kn, ks=5.0e4, mu=0.3), A(x), A(v), A(np.zeros(k)),
+                            A(np.full(k, R)), A(np.full(k, 0.9)), A([[0.0, 0.0]]),
+                            A([[0.1, 0.0]]), A(np.zeros((k, 1))), 1e-4, A([side]))
+    return [np.asarray(o) for o in out]
+
+
+def test_one_sided_wall_acts_as_the_two_sided_one_in_front():
+    x = [[0.05, 0.009], [0.05, 0.02], [0.105, 0.004]]      # on it, clear of it, off its end
+    one = floor_contacts(x, 1.0)
+    two = one_wall(x)
+    for a, b in zip(one, two):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15)
+
+
+def test_one_sided_wall_pushes_a_disc_back_from_behind():
+    """Centre 0.3R below the floor's line: δ = R + 0.3R, pushed up with k_n δ; 2.5R below
+    (past the 2R reach) or behind but beyond the wall's end: no contact."""
+    f, tq, hist, delta = floor_contacts([[0.05, -0.3 * R], [0.05, -2.5 * R],
+                                         [0.12, -0.3 * R]], 1.0)
+    np.testing.assert_allclose(delta[0, 0], 1.3 * R, rtol=1e-12)
+    np.testing.assert_allclose(f[0], [0.0, 1.0e5 * 1.3 * R], rtol=1e-12)
+    assert delta[1, 0] < 0 and delta[2, 0] < 0
+    np.testing.assert_array_equal(f[1:], 0.0)
+
+
+def test_one_sided_wall_ignores_discs_on_its_inactive_side():
+    """The same floor active below (side −1): a disc 2.5R above it (on the inactive side,
+    beyond the 2R reach behind the line) feels nothing, one just below is pushed down."""
+    f, _, _, delta = floor_contacts([[0.05, 0.025], [0.05, -0.009]], -1.0)
+    np.testing.assert_array_equal(f[0], 0.0)
+    np.testing.assert_allclose(f[1], [0.0, -1.0e5 * 0.001], rtol=1e-9)
+
+
+def test_box_walls_face_inwards():
+    from fpsi_jax.build.geometry import box_walls
+    w = box_walls(0.0, 0.0, 1.0, 0.5, top=True)
+    n_in = np.asarray(dem.inward_normals(A(w.a), A(w.b), A(w.sides())))
+    np.testing.assert_allclose(n_in, [[0, 1], [1, 0], [-1, 0], [0, -1]], atol=1e-15)

@@ -26,3 +26,20 @@ def test_a_disc_tunnelling_through_a_wall_stops_the_run():
     sc = cases.build("wall_impact", kn=10.0)
     with pytest.raises(SimulationError, match="solid particle 0: solid particle crossed a wall"):
         simulate(sc, progress=False)
+
+
+def test_a_one_sided_wall_returns_a_disc_that_went_past_its_line():
+    """A spring that lets the grain overlap 1.5 R (k_n = m v²/(1.5 R)²): through a two-sided
+    floor it is an error; a floor active on its upper side pushes it back out, with the
+    spring–dashpot's restitution e = exp(−πβ/√(1−β²)) on the normal speed."""
+    R, v, beta = 0.005, 10.0, 0.1
+    m = 2700.0 * np.pi * R * R
+    kn = m * v * v / (1.5 * R) ** 2
+    sc = cases.build("wall_impact", kn=kn, beta=beta)
+    with pytest.raises(SimulationError, match="crossed a wall"):
+        simulate(sc, progress=False)
+    sc = cases.build("wall_impact", kn=kn, beta=beta)
+    sc.walls.side = np.array([1.0])
+    res = simulate(sc, progress=False, dt=2e-5)
+    e = np.exp(-np.pi * beta / np.sqrt(1 - beta ** 2))
+    np.testing.assert_allclose(float(res.state.solid.v[0, 1]), e * v, rtol=0.01)
