@@ -17,7 +17,8 @@ run that goes unstable is reported with its diagnosis, not hidden.
 The dam break runs to at least 2 s. Scenes without a coarse version (COARSE) are the same
 run in both modes.
 
-Writes experiments/results/soak[_coarse].csv (one row per scene).
+Writes experiments/results/soak[_coarse].csv (one row per scene; rows of scenes not run
+this time are kept).
 """
 from __future__ import annotations
 
@@ -83,8 +84,12 @@ def main(argv=None):
     ap.add_argument("--files", action="store_true", help="also examples/*.toml")
     args = ap.parse_args(argv)
     names = args.scenes or list(cases.SCENES)
-    rows = []
     out = os.path.join(RESULTS, "soak_coarse.csv" if args.coarse else "soak.csv")
+    kept = []          # rows of scenes not run now stay in the file
+    if os.path.exists(out):
+        with open(out, newline="") as fh:
+            kept = [r for r in csv.DictReader(fh) if r["scene"] not in names]
+    rows = []
     jobs = [(n, lambda n=n: cases.build(n, **(COARSE.get(n, {}) if args.coarse else {})))
             for n in names if n in cases.SCENES]
     if args.files:
@@ -97,13 +102,13 @@ def main(argv=None):
         rows.append(row)
         print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()},
               flush=True)
-        keys = sorted({k for r in rows for k in r}, key=lambda k: list(row).index(k)
-                      if k in row else 99)
+        keys = sorted({k for r in rows + kept for k in r},
+                      key=lambda k: list(row).index(k) if k in row else 99)
         os.makedirs(RESULTS, exist_ok=True)
         with open(out, "w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=keys)
             w.writeheader()
-            w.writerows(rows)
+            w.writerows(kept + rows)
     bad = [r["scene"] for r in rows if r["status"] != "ok"]
     print(f"wrote {out}; {len(rows) - len(bad)}/{len(rows)} reached {args.factor:g} x t_end"
           + (f"; unstable: {', '.join(bad)}" if bad else ""))
