@@ -188,6 +188,15 @@ def make_optimizer(name: str, learning_rate: float, max_steps: int):
     raise ParameterError(f"optimizer = {name!r}; allowed {OPTIMIZERS}")
 
 
+class FitError(SimulationError):
+    """A fit that found no point with a finite loss (the CLI exits with code 3)."""
+
+    def __init__(self, message: str):
+        RuntimeError.__init__(self, message)
+        self.step = self.time = self.particle = self.output = None
+        self.phase, self.quantity = "calibration", message
+
+
 class _Tracker:
     """History, best point and early stopping shared by both loops."""
 
@@ -246,6 +255,9 @@ def fit(cal: Calibration, *, z0=None, optimizer: str = "lm", learning_rate: floa
         stopped = _levenberg_marquardt(cal, z, tr, jac, max_steps, loss_tol)
     else:
         stopped = _first_order(cal, z, tr, optimizer, learning_rate, max_steps, loss_tol)
+    if tr.best_z is None:
+        raise FitError("the loss is not finite at any point tried: every run went "
+                       "unstable or gave a non-finite probe")
     stderr = gauss_newton_stderr(cal, tr.best_z, noise, jac=None if jacobian == "ad"
                                  else (lambda zz: cal.jacobian_fd(zz, fd_step)))
     space = cal.space

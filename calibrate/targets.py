@@ -33,6 +33,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from fpsi_jax.model.errors import ParameterError
+
 
 def _window(times, t0, t1):
     t = np.asarray(times)
@@ -194,6 +196,17 @@ class Trajectory:
     weight: float = 1.0
     name: str = "trajectory"
     initial: tuple | None = None
+
+    def __post_init__(self):
+        v = np.asarray(self.values, float)
+        if not np.all(np.isfinite(v)):
+            raise ParameterError(f"{self.name}: the reference values contain NaN or inf")
+        scale = self._scale()
+        if np.any(~np.isfinite(scale) | (scale <= 0)):
+            k = int(np.argmax(~np.isfinite(scale) | (scale <= 0)))
+            raise ParameterError(
+                f"{self.name}: component {k} of the reference is zero everywhere, so it has "
+                "no scale to compare against; give its scale (or fit another component)")
 
     def _sel(self, times):
         t = np.asarray(self.t_ref, float)

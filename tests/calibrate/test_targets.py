@@ -72,3 +72,15 @@ def test_total_residuals_weights():
     a = tg.StaticDeflection(value=-0.002, weight=4.0)
     r = tg.total_residuals([a, a], t, u)
     assert float(jnp.sum(r ** 2)) == pytest.approx(2 * 4.0 * 0.25, rel=1e-12)
+
+
+def test_a_reference_that_is_zero_everywhere_is_refused():
+    """A recorded component that never moves has no scale to compare a run against (the
+    residuals would divide by 0): refused when the target is made, before any run."""
+    from fpsi_jax.model.errors import ParameterError
+    t = (0.1, 0.2, 0.3)
+    with pytest.raises(ParameterError, match="component 1 of the reference is zero"):
+        tg.Trajectory(t_ref=t, values=((1.0, 0.0), (2.0, 0.0), (3.0, 0.0)))
+    with pytest.raises(ParameterError, match="NaN or inf"):
+        tg.Trajectory(t_ref=t, values=((1.0, 1.0), (float("nan"), 0.0), (3.0, 1.0)))
+    tg.Trajectory(t_ref=t, values=((1.0, 0.0), (2.0, 0.0), (3.0, 0.0)), scale=(1.0, 1.0))
