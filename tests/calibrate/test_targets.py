@@ -63,7 +63,7 @@ def test_static_deflection_and_trajectory():
     assert rx == pytest.approx(np.sqrt(np.mean((np.interp([0.105, 0.5, 0.9], t, np.sin(t))
                                                 - np.array([0.1, 0.4, 0.8])) ** 2)))
     with pytest.raises(ValueError, match="no reference sample"):
-        tg.Trajectory(t_ref=(2.0,), values=((0.0, 0.0),)).residuals(t, jnp.asarray(u))
+        tg.Trajectory(t_ref=(2.0,), values=((1.0, 1.0),)).residuals(t, jnp.asarray(u))
 
 
 def test_total_residuals_weights():
