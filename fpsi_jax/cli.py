@@ -10,7 +10,7 @@ import json
 import os
 import sys
 
-from .model.errors import ParameterError, SimulationError
+from .model.errors import ParameterError, SimulationError, number
 
 
 def cmd_list(args):
@@ -36,7 +36,7 @@ def cmd_run(args):
     from . import cases
     from .cases import overrides as ov
     from .cases.plotting import default_plot
-    from .run.driver import setup, simulate
+    from .run.driver import check_steps, setup, simulate
 
     case = None
     if is_scene_file(args.scene):
@@ -54,14 +54,16 @@ def cmd_run(args):
         observer = cases.OBSERVERS.get(scene.name)
         observe = observer(scene) if observer is not None else None
     t_end = scene.t_end if args.t_end is None else args.t_end
-    if not t_end > 0:
-        raise ParameterError(f"--t-end = {t_end} out of range; allowed (0, inf)")
+    t_end = number("--t-end", t_end, 0.0, None, lo_open=True)
     unsafe = args.unsafe_dt
     if unsafe and args.dt is None:
         raise ParameterError("--unsafe-dt needs --dt")
-    if every is not None and not 0 < every:
-        raise ParameterError(f"--every = {every} out of range; allowed (0, t_end] s")
-    setup(scene, args.dt, unsafe_dt=unsafe, **phys)    # every check before compiling
+    if args.dt is not None:
+        number("--dt", args.dt, 0.0, None, lo_open=True)
+    if every is not None:
+        number("--every", every, 0.0, t_end, lo_open=True)
+    _, params = setup(scene, args.dt, unsafe_dt=unsafe, **phys)  # every check before compiling
+    check_steps(t_end, float(params.dt))
     try:
         res = simulate(scene, t_end=t_end, output=out, every=every,
                        progress=not args.quiet, dt=args.dt, observe=observe, unsafe_dt=unsafe,
@@ -123,6 +125,9 @@ def make_parser():
                    help="override a scene parameter (registered scenes), a Params leaf or a "
                         "Physics option")
     r.add_argument("--plot", action="store_true", help="write a PNG next to the output")
+    r.add_argument("--max-particles", type=int, default=None, metavar="N",
+                   help="allow scenes of up to N particles (default: what this machine's "
+                        "memory holds, about 8 kB a particle)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     v = sub.add_parser("validate", help="run registered validation cases")
     v.add_argument("cases", nargs="*")
@@ -155,6 +160,13 @@ def main(argv=None):
     commands = {"list": cmd_list, "run": cmd_run, "validate": cmd_validate}
     commands.update({name: mod.run for name, mod in _plugins().items()})
     try:
+        limit = getattr(args, "max_particles", None)
+        if limit is not None:
+            if limit < 1:
+                raise ParameterError(f"--max-particles = {limit} out of range; allowed [1, inf)")
+            from .model import limits
+            with limits.allow(limit):
+                return commands[args.cmd](args)
         return commands[args.cmd](args)
     except ParameterError as e:
         print(f"error: {e}", file=sys.stderr)

@@ -31,6 +31,7 @@ def dam_speed(height: float, g: float = G) -> float:
 
 def hydrostatic_fluid(x, rho0, c0, gamma, surface_y, g=G, dx=None, h=None):
     """Fluid block at rest with hydrostatic density ρ(P = ρ0 g (H − y)) and mass ρ0 dx²."""
+    check_positive(rho0=rho0, c0=c0, gamma=gamma)
     p = rho0 * g * np.maximum(surface_y - x[:, 1], 0.0)
     rho = np.array(density(p, rho0, c0, gamma))
     n = x.shape[0]
@@ -39,9 +40,10 @@ def hydrostatic_fluid(x, rho0, c0, gamma, surface_y, g=G, dx=None, h=None):
 
 
 def sph_params(rho0, c0, mu, dx, r_clump, eps_xsph, delta, gamma=7.0, alpha=0.0):
-    """SphParams with the initial spacing Δp = dx (the anti-clump term's reference)."""
+    """SphParams with the initial spacing Δp = dx (the anti-clump term's reference), checked
+    (SphParams.validate) before any particle is made."""
     return SphParams(rho0=rho0, c0=c0, gamma=gamma, mu=mu, r_clump=r_clump, dp=dx,
-                     eps_xsph=eps_xsph, delta=delta, alpha=alpha)
+                     eps_xsph=eps_xsph, delta=delta, alpha=alpha).checked()
 
 
 def fluid_block(points, dx, rho0, c0, h, surface_y=None, gamma=7.0, g=G):

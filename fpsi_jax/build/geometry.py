@@ -11,14 +11,28 @@ import math
 
 import numpy as np
 
-from ..model.errors import ParameterError
+from ..model.errors import ParameterError, check_positive, fmt
 from ..model.scene import BondBlock, WallBlock
+from ..model import limits
+
+
+def _cells(width, height, dx, what="a lattice"):
+    """(nx, ny) = round(width/dx), round(height/dx), checked before anything is allocated:
+    at least one along each side, and no more than the machine holds (model.limits)."""
+    check_positive(width=width, height=height, dx=dx)
+    fx, fy = width / dx, height / dx
+    limits.check(fx * fy, f"{what} of {fmt(width)} x {fmt(height)} m at spacing {fmt(dx)} m")
+    nx, ny = int(round(fx)), int(round(fy))
+    if nx < 1 or ny < 1:
+        raise ParameterError(f"spacing {fmt(dx)} m is larger than the {fmt(width)} x "
+                             f"{fmt(height)} m block it should fill; allowed (0, "
+                             f"{fmt(2 * min(width, height))}) m")
+    return nx, ny
 
 
 def lattice(x0, y0, width, height, dx):
     """Cell-centred square lattice filling [x0, x0+width] × [y0, y0+height]."""
-    nx = max(1, int(round(width / dx)))
-    ny = max(1, int(round(height / dx)))
+    nx, ny = _cells(width, height, dx)
     xs = x0 + (np.arange(nx) + 0.5) * dx
     ys = y0 + (np.arange(ny) + 0.5) * dx
     X, Y = np.meshgrid(xs, ys, indexing="ij")
@@ -29,6 +43,7 @@ def hex_packing(x0, y0, width, height, d, first_row_long=True):
     """Hexagonally packed disc centres (diameter d) in rows along x, filling the rectangle
     [x0, x0+width] × [y0, y0+height] with every disc inside it. Rows are √3/2·d apart;
     odd rows are shifted by d/2 (they hold one disc fewer)."""
+    _cells(width, height, d, "a packing")
     s = math.sqrt(3.0) / 2.0 * d
     n_rows = int(math.floor((height - d) / s + 1e-9)) + 1
     n_long = int(math.floor(width / d + 1e-9))
@@ -45,6 +60,7 @@ def hex_packing(x0, y0, width, height, d, first_row_long=True):
 
 def square_packing(x0, y0, width, height, d):
     """Square-packed disc centres filling [x0, x0+width] × [y0, y0+height]."""
+    _cells(width, height, d, "a packing")
     nx, ny = int(math.floor(width / d + 1e-9)), int(math.floor(height / d + 1e-9))
     if nx < 1 or ny < 1:
         raise ParameterError(f"a {width} × {height} rectangle holds no disc of diameter {d}")

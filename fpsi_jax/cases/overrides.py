@@ -14,6 +14,8 @@ from ..model.errors import ParameterError
 
 
 def parse_value(text: str):
+    """A ``--set`` value: true/false (on/off, yes/no), none, a JSON number, list or string,
+    nan/inf as floats (refused later as not finite), anything else the text itself."""
     low = text.strip().lower()
     if low in ("true", "on", "yes"):
         return True
@@ -21,6 +23,8 @@ def parse_value(text: str):
         return False
     if low in ("none", "null"):
         return None
+    if low in ("nan", "inf", "+inf", "-inf", "infinity", "-infinity"):
+        return float(low)                    # refused as not finite, by name
     try:
         return json.loads(text)
     except ValueError:

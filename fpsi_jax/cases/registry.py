@@ -21,7 +21,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..model.errors import ParameterError
+from ..model.errors import ParameterError, fmt, number
 
 
 @dataclass
@@ -142,7 +142,30 @@ def build(name: str, **kwargs):
     if bad:
         raise ParameterError(f"scene {name!r} has no parameter {bad[0]!r}; allowed: "
                              f"{', '.join(keys)}")
-    return fn(**kwargs).validate()
+    return fn(**check_kinds(name, kwargs)).validate()
+
+
+def check_kinds(name: str, kwargs: dict) -> dict:
+    """``kwargs`` checked against the kinds of the builder's defaults, before it runs: a
+    float default takes a finite number, an int one an integer, a bool one true/false, a
+    str one a string, a None default a finite number or None. (Ranges are the builder's
+    own checks.) Returns the values, integral floats for int keys made ints."""
+    params = inspect.signature(get(name)).parameters
+    out = {}
+    for k, v in kwargs.items():
+        default = params[k].default
+        what = f"scene {name!r}: {k}"
+        if isinstance(default, bool):
+            if not isinstance(v, (bool, np.bool_)):
+                raise ParameterError(f"{what} = {fmt(v)} is not true or false")
+        elif isinstance(default, int):
+            v = number(what, v, integer=True)
+        elif isinstance(default, float) or (default is None and v is not None):
+            v = number(what, v)
+        elif isinstance(default, str) and not isinstance(v, str):
+            raise ParameterError(f"{what} = {fmt(v)} is not a string (default {default!r})")
+        out[k] = v
+    return out
 
 
 def data_path(name: str):

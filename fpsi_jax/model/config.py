@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ParameterError
+from .errors import ParameterError, fmt, number
 from .options import (BondSection, BoundaryPressure, FpiPressure, FsiMethod, KernelKind,
                       Voidage, choose)
 from .scene import Scene
@@ -76,6 +76,39 @@ class Parking:
                        rows=rows)
 
 
+
+
+#: Physics options that are switches (true/false)
+SWITCHES = ("xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
+            "artificial_viscosity", "wall_repulsion", "x64", "fpi", "lubrication")
+#: numeric Physics options: (lo, hi, lo_open, hi_open, integer)
+RANGES = {"h_margin": (1.0, 2.0, False, False, False),
+          "rho_tolerance": (0.0, 1.0, True, False, False),
+          "skin": (0.0, 2.0, False, False, False),            # × h
+          "capacity_multiplier": (1.0, 10.0, False, False, False),
+          "dem_skin": (0.0, 2.0, False, False, False),        # × R_max
+          "eps_floor": (0.0, 1.0, False, True, False),
+          "dem_substeps": (1, 10000, False, False, True)}
+
+
+def check_options(opts: dict) -> dict:
+    """Physics options checked by kind before anything is built: switches take true/false,
+    numbers their range (:data:`RANGES`), choices one of their values (``fsi`` also None,
+    ``dem_substeps`` None for "derived"). Returns the options with numbers as Python
+    numbers."""
+    out = {}
+    for k, v in opts.items():
+        if k in SWITCHES:
+            if not isinstance(v, (bool, np.bool_)):
+                raise ParameterError(f"{k} = {fmt(v)} is not true or false")
+            v = bool(v)
+        elif k in RANGES and not (k == "dem_substeps" and v is None):
+            lo, hi, lo_open, hi_open, integer = RANGES[k]
+            v = number(k, v, lo, hi, lo_open, hi_open, integer)
+        elif k in Physics.CHOICES and not (k == "fsi" and v is None):
+            v = choose(Physics.CHOICES[k], k, v)
+        out[k] = v
+    return out
 
 
 @dataclass(frozen=True)
@@ -189,6 +222,7 @@ class Physics:
         if unknown:
             raise ParameterError(f"unknown Physics option(s) {sorted(unknown)}; "
                                  f"allowed: {', '.join(cls.OPTIONS)}")
+        opts = check_options(opts)
         # 0.4 h: with the fluid-only step (3.5× physics.md's) a 0.25 h skin was rebuilt every
         # ~5 steps of the 24k dam break and overflowed to K = 48; 0.4 h measured fastest
         # (0.25 / 0.3 / 0.35 / 0.4 / 0.45 / 0.6 h: 0.51 / 0.94 / 0.96 / 0.98 / 0.81 / 0.83 M
@@ -196,20 +230,10 @@ class Physics:
         # and the 0.25 h skin that suits it (Scene.fsi_coupled).
         skin_factor = opts.pop("skin", 0.25 if scene.fsi_coupled else 0.4)
         cap = opts.pop("capacity_multiplier", 1.25)
-        h_margin = float(opts.get("h_margin", 1.05))
-        if not 1.0 <= h_margin <= 2.0:
-            raise ParameterError(f"h_margin = {h_margin} out of range; allowed [1, 2]")
-        if not 0.0 <= skin_factor <= 2.0:
-            raise ParameterError(f"skin = {skin_factor} out of range; allowed [0, 2] (× h)")
         dem_skin = float(opts.pop("dem_skin", 0.5))
-        if not 0.0 <= dem_skin <= 2.0:
-            raise ParameterError(f"dem_skin = {dem_skin} out of range; allowed [0, 2] (× R_max)")
-        n_sub = opts.get("dem_substeps", 1)
-        if n_sub is None:
+        h_margin = float(opts.get("h_margin", 1.05))
+        if opts.get("dem_substeps", 1) is None:
             opts.pop("dem_substeps")
-        elif not (isinstance(n_sub, (int, np.integer)) and 1 <= n_sub <= 10000):
-            raise ParameterError(f"dem_substeps = {n_sub!r} out of range; allowed integers "
-                                 "[1, 10000]")
         method = opts.get("fsi")
         n_structure = 0
         if method is not None:
@@ -230,9 +254,6 @@ class Physics:
             both = np.intersect1d(scene.solid.grain_indices(), scene.solid.structure_indices())
             if method is not None and both.size:
                 raise ParameterError(f"disc {int(both[0])} is both a grain and structure")
-        floor = opts.get("eps_floor", 0.0)
-        if not (isinstance(floor, (int, float)) and 0.0 <= floor < 1.0):
-            raise ParameterError(f"eps_floor = {floor!r} out of range; allowed [0, 1)")
         lo = tuple(map(float, scene.domain_lo))
         hi = tuple(map(float, scene.domain_hi))
         box = tuple(float(h - l) for h, l in zip(hi, lo))

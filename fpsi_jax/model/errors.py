@@ -16,26 +16,64 @@ class ParameterError(ValueError):
     """Bad user input: names the parameter and the allowed range."""
 
 
-def require(name: str, value, lo=None, hi=None, lo_open=False, hi_open=False):
-    """Raise ParameterError unless lo <= value <= hi (open ends where asked)."""
+def fmt(value) -> str:
+    """A value as a user writes it: numbers plain (``0.5``, ``5e+08``; never numpy's
+    ``np.float64(...)``), strings quoted, anything else by repr."""
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return f"{float(value):g}" if not isinstance(value, (int, np.integer)) else str(int(value))
+    return repr(value)
+
+
+def number(name: str, value, lo=None, hi=None, lo_open=False, hi_open=False,
+           integer=False) -> float:
+    """``value`` as a finite float (int with ``integer``) inside [lo, hi] (open ends where
+    asked); ParameterError naming ``name`` otherwise. Booleans, strings, None, NaN and ±inf
+    are not numbers here."""
+    kind = "an integer" if integer else "a number"
+    left = "(" if lo_open or lo is None else "["
+    right = ")" if hi_open or hi is None else "]"
+    rng = f"{left}{'-inf' if lo is None else fmt(lo)}, {'inf' if hi is None else fmt(hi)}{right}"
+    if lo is None and hi is None:
+        rng = f"any finite {'integer' if integer else 'number'}"
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer,
+                                                                      np.floating)):
+        raise ParameterError(f"{name} = {fmt(value)} is not {kind}; allowed {rng}")
     v = float(value)
-    bad = not math.isfinite(v)
+    if not math.isfinite(v):
+        raise ParameterError(f"{name} = {fmt(value)} is not finite; allowed {rng}")
+    if integer and v != int(v):
+        raise ParameterError(f"{name} = {fmt(value)} is not {kind}; allowed {rng}")
+    bad = False
     if lo is not None:
         bad |= v <= lo if lo_open else v < lo
     if hi is not None:
         bad |= v >= hi if hi_open else v > hi
     if bad:
-        left = "(" if lo_open else "["
-        right = ")" if hi_open else "]"
-        rng = f"{left}{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}{right}"
-        raise ParameterError(f"{name} = {value!r} is out of range; allowed {rng}")
+        raise ParameterError(f"{name} = {fmt(value)} is out of range; allowed {rng}")
+    return int(v) if integer else v
+
+
+def require(name: str, value, lo=None, hi=None, lo_open=False, hi_open=False):
+    """Raise ParameterError unless ``value`` is a finite number with lo <= value <= hi (open
+    ends where asked). Arrays (traced or not) pass through unchecked when not scalars."""
+    if np.ndim(value) != 0 or _traced(value):
+        return
+    if hasattr(value, "item") and not isinstance(value, (np.integer, np.floating)):
+        value = value.item()            # a 0-d array
+    number(name, value, lo, hi, lo_open, hi_open)
+
+
+def _traced(value) -> bool:
+    return type(value).__module__.startswith("jax") and not hasattr(value, "item")
 
 
 def check_positive(**kw):
-    """Raise ParameterError for the first keyword whose value is not finite and > 0."""
+    """Raise ParameterError for the first keyword whose value is not a finite number > 0."""
     for k, v in kw.items():
-        if not (np.isfinite(v) and v > 0):
-            raise ParameterError(f"{k} = {v!r} out of range; allowed (0, inf)")
+        number(k, v.item() if hasattr(v, "item") and np.ndim(v) == 0 else v, 0.0, None,
+               lo_open=True)
 
 
 class SimulationError(RuntimeError):

@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .errors import ParameterError, require
+from .errors import ParameterError, _traced, fmt, require
 from .tree import pytree_dataclass
 
 
@@ -63,6 +63,11 @@ class SphParams:
         require("sph.delta", self.delta, 0.0, 1.0)
         require("sph.alpha", self.alpha, 0.0, 1.0)
         require("sph.wall_beta", self.wall_beta, 0.0, 1.0)
+
+    def checked(self) -> "SphParams":
+        """``self`` after :meth:`validate`."""
+        self.validate()
+        return self
 
 
 @pytree_dataclass
@@ -166,9 +171,14 @@ class Params:
 
     def validate(self):
         require("dt", self.dt, 0.0, None, lo_open=True)
-        g = np.asarray(self.gravity, dtype=float)
-        if g.shape != (2,) or not np.all(np.isfinite(g)):
-            raise ParameterError(f"gravity must be a finite 2-vector, got {self.gravity!r}")
+        try:
+            g = np.asarray(self.gravity, dtype=float)
+            ok = g.shape == (2,) and bool(np.all(np.isfinite(g)))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok and not _traced(self.gravity):
+            raise ParameterError(f"gravity = {fmt(self.gravity)} is not a finite vector "
+                                 "[gx, gy] (m/s²)")
         for sub in (self.sph, self.dem, self.bond, self.fpi):
             if sub is not None:
                 sub.validate()

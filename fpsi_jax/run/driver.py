@@ -24,8 +24,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..model import limits
 from ..model.config import Physics
-from ..model.errors import ParameterError, SimulationError
+from ..model.errors import ParameterError, SimulationError, fmt, number
 from ..model.params import Params
 from ..model.scene import Scene
 from ..model.state import STATUS_CODES, State
@@ -77,6 +78,7 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
     fewest that keep dt/n under the DEM bound unless the caller fixes it (``dem_substeps=1``
     is the single-rate run, whose default dt is then the smaller of the two bounds)."""
     scene.validate()
+    limits.check(scene.n_particles, f"scene {scene.name!r}")
     phys = Physics.for_scene(scene, **physics_overrides)
     params = (params or scene.params)
     opts = {**scene.options, **physics_overrides}
@@ -102,6 +104,20 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
     if phys.x64:
         jax.config.update("jax_enable_x64", True)
     return phys, params
+
+
+#: the step counter is int32 inside the compiled step
+MAX_STEPS = 2 ** 31 - 1
+
+
+def check_steps(t_end: float, dt: float) -> int:
+    """The number of steps to ``t_end``; ParameterError past what the step counter holds."""
+    n = math.ceil(t_end / dt - 1e-9)
+    if n > MAX_STEPS:
+        raise ParameterError(f"t_end = {fmt(t_end)} s needs {n:.3g} steps of {fmt(dt)} s; "
+                             f"allowed at most {MAX_STEPS:,} steps (t_end <= "
+                             f"{fmt(MAX_STEPS * dt)} s)")
+    return int(n)
 
 
 _advance = jax.jit(stepper.advance, static_argnums=(0, 4, 5))
@@ -198,16 +214,12 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
                 ``<output>_probes.csv`` (up to the last good chunk if the run goes unstable)
     physics_overrides   Physics options (e.g. delta_sph=True, x64=True)
     """
-    t_end = float(scene.t_end if t_end is None else t_end)
-    if not t_end > 0:
-        raise ParameterError(f"t_end = {t_end} out of range; allowed (0, inf)")
+    t_end = number("t_end", scene.t_end if t_end is None else t_end, 0.0, None, lo_open=True)
+    every = t_end / 100 if every is None else number("every", every, 0.0, t_end, lo_open=True)
     phys, params = setup(scene, dt, params, unsafe_dt=unsafe_dt, **physics_overrides)
     dt = float(params.dt)
     p = params.as_arrays(stages.dtype(phys))
-    n_total = int(math.ceil(t_end / dt - 1e-9))
-    every = t_end / 100 if every is None else float(every)
-    if not every > 0:
-        raise ParameterError(f"every = {every} out of range; allowed (0, t_end]")
+    n_total = check_steps(t_end, dt)
     chunk = chunk_steps or max(1, int(round(every / dt)))
 
     probes = probing.check_names(probes)

@@ -10,13 +10,13 @@ from fpsi_jax.run import io
 @pytest.mark.parametrize("argv, word", [
     (["run", "nope"], "unknown scene 'nope'"),
     (["run", "dam_break", "--set", "foo=1"], "unknown key 'foo'"),
-    (["run", "dam_break", "--set", "dx=-1"], "dx = -1 out of range"),
+    (["run", "dam_break", "--set", "dx=-1"], "dx = -1 is out of range; allowed (0, inf)"),
     (["run", "dam_break", "--set", "eps_xsph=2"], "eps_xsph = 2 is out of range"),
     (["run", "dam_break", "--set", "kernel=gauss"], "kernel = 'gauss' is not a choice"),
     (["run", "dam_break", "--dt", "1"], "exceeds the stability bound"),
     (["run", "dam_break", "--t-end", "-1"], "t-end"),
     (["run", "dam_break", "--unsafe-dt"], "--unsafe-dt needs --dt"),
-    (["run", "dam_break", "--dt", "-1", "--unsafe-dt"], "dt = -1.0 out of range"),
+    (["run", "dam_break", "--dt", "-1", "--unsafe-dt"], "--dt = -1 is out of range"),
     (["validate", "nope"], "unknown validation case 'nope'"),
 ])
 def test_bad_input_exits_2_with_one_line(argv, word, tmp_path, capsys):
