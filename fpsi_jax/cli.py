@@ -10,7 +10,7 @@ import json
 import os
 import sys
 
-from .model.errors import ParameterError, SimulationError, number
+from .model.errors import Interrupted, ParameterError, SimulationError, number
 
 
 def cmd_list(args):
@@ -32,12 +32,39 @@ def is_scene_file(name: str) -> bool:
     return name.lower().endswith(".toml")
 
 
+def _resume_args(args):
+    """``args`` filled from the run record of the file named by --resume."""
+    import h5py
+    from .run import io
+    path = args.resume
+    if not io.ours(path):
+        raise ParameterError(f"--resume = {path!r} is not a run written by fpsi-jax")
+    with h5py.File(path, "r", locking=False) as f:
+        info = json.loads(f.attrs.get("run", "{}") or "{}")
+    if not info.get("scene"):
+        raise ParameterError(f"--resume = {path!r} was not written by fpsi run (no run record)")
+    if args.scene not in (None, info["scene"]):
+        raise ParameterError(f"--resume: {path!r} is a run of {info['scene']!r}, not "
+                             f"{args.scene!r}")
+    for key in ("scene", "set", "t_end", "every", "dt", "unsafe_dt", "plot"):
+        setattr(args, key, info.get(key))
+    args.out = path
+    return args
+
+
 def cmd_run(args):
     from . import cases
     from .cases import overrides as ov
     from .cases.plotting import default_plot
+    from .run import io
     from .run.driver import check_steps, setup, simulate
 
+    if args.resume:
+        args = _resume_args(args)
+    elif args.scene is None:
+        raise ParameterError("fpsi run needs a scene (fpsi list) or --resume FILE")
+    if args.out and not args.resume:
+        io.check_output(args.out, args.overwrite)             # before anything is built
     case = None
     if is_scene_file(args.scene):
         from . import scenefile
@@ -53,6 +80,11 @@ def cmd_run(args):
         out, every, want_plot, probes = args.out, args.every, args.plot, None
         observer = cases.OBSERVERS.get(scene.name)
         observe = observer(scene) if observer is not None else None
+    if out and not args.resume:
+        io.check_output(out, args.overwrite)
+    png = os.path.splitext(out or f"results/{scene.name}.h5")[0] + ".png"
+    if want_plot:
+        io.check_output(png, kind="png")
     t_end = scene.t_end if args.t_end is None else args.t_end
     t_end = number("--t-end", t_end, 0.0, None, lo_open=True)
     unsafe = args.unsafe_dt
@@ -64,25 +96,36 @@ def cmd_run(args):
         number("--every", every, 0.0, t_end, lo_open=True)
     _, params = setup(scene, args.dt, unsafe_dt=unsafe, **phys)  # every check before compiling
     check_steps(t_end, float(params.dt))
+    info = {"scene": args.scene, "set": args.set or [], "t_end": t_end, "every": every,
+            "dt": args.dt, "unsafe_dt": unsafe, "plot": want_plot}
     try:
         res = simulate(scene, t_end=t_end, output=out, every=every,
                        progress=not args.quiet, dt=args.dt, observe=observe, unsafe_dt=unsafe,
-                       probes=probes, **phys)
+                       probes=probes, overwrite=args.overwrite, run_info=info,
+                       resume=args.resume, **phys)
     except SimulationError as e:
         print(f"error: {e}", file=sys.stderr)
         return 3
+    except io.OutputError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 4
+    except Interrupted as e:
+        print(f"stopped: {e}", file=sys.stderr)
+        return 130 if e.signal == "SIGINT" else 143
     sub = (f" x {res.physics.dem_substeps} DEM sub-steps"
            if res.physics.has_fluid and res.physics.has_solid else "")
+    speed = (f"{res.particle_steps_per_s / 1e6:.2f} M particle-steps/s"
+             + (" (compile included: every step was in the first chunk)"
+                if res.throughput_includes_compile else ""))
+    left = f", {res.excluded} particles left through open sides" if res.excluded else ""
     print(f"{scene.name}: {res.n_steps} steps of {float(res.params.dt):.4g} s{sub}, "
-          f"{scene.n_particles} particles, wall {res.wall_s:.1f} s "
-          f"(compile+first chunk {res.compile_s:.1f} s), "
-          f"{res.particle_steps_per_s / 1e6:.2f} M particle-steps/s, "
+          f"{scene.n_particles} particles{left}, wall {res.wall_s:.1f} s "
+          f"(compile+first chunk {res.compile_s:.1f} s), {speed}, "
           f"{res.rebuilds} neighbour rebuilds")
     if out:
         extra = f" and {os.path.splitext(out)[0]}_probes.csv" if probes else ""
-        print(f"wrote {out}, {os.path.splitext(out)[0]}.xdmf{extra}")
+        print(f"wrote {out}, {io.sidecar(out)}{extra}")
     if want_plot:
-        png = os.path.splitext(out or f"results/{scene.name}.h5")[0] + ".png"
         os.makedirs(os.path.dirname(os.path.abspath(png)), exist_ok=True)
         if case is not None:
             from .scenefile.plot import plot_probes
@@ -97,6 +140,9 @@ def cmd_run(args):
 def cmd_validate(args):
     from .cases import overrides as ov
     from .cases import validate
+    from .run import io
+    if args.json:
+        io.check_output(args.json, kind="json")          # before the cases run
     recs = validate.run(args.cases, quick=args.quick, overrides=ov.parse_pairs(args.set))
     print(validate.format_table(recs))
     if args.json:
@@ -110,11 +156,20 @@ def make_parser():
     p = argparse.ArgumentParser(prog="fpsi", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True)
     sub.add_parser("list", help="list scenes and validation cases")
-    r = sub.add_parser("run", help="run a scene")
-    r.add_argument("scene", help="a registered scene (fpsi list) or a scene file "
-                   "(my_case.toml; docs/scene-file.md)")
+    r = sub.add_parser("run", help="run a scene", epilog=(
+        "exit codes: 0 done; 2 bad input (nothing written); 3 the run went unstable (the "
+        "file keeps every good frame); 4 the output could not be written (e.g. a full "
+        "disk; frames so far intact); 130/143 stopped by SIGINT/SIGTERM at the end of a "
+        "chunk (continue with --resume FILE)"))
+    r.add_argument("scene", nargs="?", default=None,
+                   help="a registered scene (fpsi list) or a scene file "
+                   "(my_case.toml; docs/scene-file.md); omitted with --resume")
     r.add_argument("--t-end", type=float, default=None, help="physical time [s]")
-    r.add_argument("--out", default=None, help="HDF5 output path (.xdmf written beside)")
+    r.add_argument("--out", default=None, help="HDF5 output path, .h5 (.xdmf written beside)")
+    r.add_argument("--overwrite", action="store_true",
+                   help="replace an existing output file (only one fpsi-jax wrote)")
+    r.add_argument("--resume", default=None, metavar="FILE",
+                   help="continue a stopped run from the last complete frame of its file")
     r.add_argument("--every", type=float, default=None, help="seconds between frames")
     r.add_argument("--dt", type=float, default=None, help="time step (default: the bound)")
     r.add_argument("--unsafe-dt", action="store_true",
@@ -171,6 +226,9 @@ def main(argv=None):
     except ParameterError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("stopped: interrupted before the run started; nothing written", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ of the record (``params``), never hidden.
 from __future__ import annotations
 
 from ..model.errors import ParameterError
-from .registry import CASES, Record
+from .registry import CASES, SCENE_OF, Record
 
 
 def run(names=None, quick=False, overrides=None) -> list[Record]:
@@ -19,10 +19,35 @@ def run(names=None, quick=False, overrides=None) -> list[Record]:
         if n not in CASES:
             raise ParameterError(f"unknown validation case {n!r}; available: "
                                  f"{', '.join(CASES)}")
+    for n in names:
+        check_keys(n, overrides or {})
     out = []
     for n in names:
         out += CASES[n](quick=quick, overrides=dict(overrides or {}))
     return out
+
+
+def check_keys(case: str, overrides: dict) -> None:
+    """Every ``--set`` key must mean something to the scene of ``case`` (a builder keyword,
+    a Params leaf, a Physics option or dt): checked for every selected case before any
+    runs, so a key that fits only some of them is refused up front."""
+    from ..model.config import Physics
+    from . import registry
+    scene = SCENE_OF[case]
+    keys = set(registry.builder_keys(scene))
+    params = None
+    for k in overrides:
+        if k in keys or k in Physics.OPTIONS or k == "dt":
+            continue
+        params = params or registry.build(scene).params
+        try:
+            params.resolve(k)
+        except ParameterError:
+            raise ParameterError(
+                f"--set {k}: the validation case {case!r} (scene {scene!r}) has no such key; "
+                f"allowed: scene parameters {', '.join(sorted(keys))}; params "
+                f"{', '.join(params.names())}; physics options "
+                f"{', '.join(Physics.OPTIONS)}") from None
 
 
 def format_table(records) -> str:

@@ -85,3 +85,14 @@ class SimulationError(RuntimeError):
         where = f"; frames up to t = {t_good:.6g} s are in {output}" if output else ""
         super().__init__(f"run unstable at step {step} (t = {t:.6g} s): {phase} particle "
                          f"{particle}: {quantity}{where}")
+
+
+class Interrupted(RuntimeError):
+    """A run stopped by SIGINT or SIGTERM at the end of a chunk. Attributes: signal (its
+    name), step, time, frames (in the output file), output."""
+
+    def __init__(self, signal, step, t, frames=0, output=None):
+        self.signal, self.step, self.time = signal, step, t
+        self.frames, self.output = frames, output
+        where = f"; {frames} frames in {output} (fpsi run --resume {output})" if output else ""
+        super().__init__(f"interrupted by {signal} at step {step} (t = {t:.6g} s){where}")

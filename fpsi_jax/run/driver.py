@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import signal
+import threading
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -26,7 +28,7 @@ import numpy as np
 
 from ..model import limits
 from ..model.config import Physics
-from ..model.errors import ParameterError, SimulationError, fmt, number
+from ..model.errors import Interrupted, ParameterError, SimulationError, fmt, number
 from ..model.params import Params
 from ..model.scene import Scene
 from ..model.state import STATUS_CODES, State
@@ -34,6 +36,7 @@ from ..physics import dem
 from ..solver import init, neighbors, stages, timestep
 from ..solver import forward as stepper
 from . import probes as probing
+from . import io
 from .io import Writer
 
 
@@ -51,6 +54,7 @@ class Result:
     output: str | None = None
     first_chunk_steps: int = 0
     probes: dict | None = None       # probe name -> (n_steps, k) values after every step
+    steps_run: int | None = None     # steps this call ran (n_steps less a resumed start)
 
     @property
     def times(self) -> np.ndarray:
@@ -58,12 +62,25 @@ class Result:
         return (np.arange(self.n_steps) + 1) * float(self.params.dt)
 
     @property
+    def throughput_includes_compile(self) -> bool:
+        """Every step fell in the first chunk, so the throughput counts the compile too."""
+        ran = self.n_steps if self.steps_run is None else self.steps_run
+        return ran <= self.first_chunk_steps
+
+    @property
     def particle_steps_per_s(self) -> float:
-        """Throughput after the first chunk (which includes the compile), all particles."""
+        """Throughput after the first chunk (which includes the compile), all particles;
+        with every step in the first chunk, over the whole wall time (compile included)."""
         n = self.physics.n_fluid + self.physics.n_boundary + self.physics.n_solid
-        steps = self.n_steps - self.first_chunk_steps
-        run = self.wall_s - self.compile_s
-        return n * steps / run if steps > 0 and run > 0 else float("nan")
+        ran = self.n_steps if self.steps_run is None else self.steps_run
+        if self.throughput_includes_compile:
+            return n * ran / self.wall_s if self.wall_s > 0 else 0.0
+        return n * (ran - self.first_chunk_steps) / (self.wall_s - self.compile_s)
+
+    @property
+    def excluded(self) -> int:
+        """Particles that left through an open side by the end of the run."""
+        return excluded(self.state)
 
 
 def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
@@ -201,10 +218,13 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
              every: float | None = None, progress: bool = True, dt: float | None = None,
              params: Params | None = None, observe: Callable | None = None,
              chunk_steps: int | None = None, state: State | None = None,
-             unsafe_dt: bool = False, probes=None, **physics_overrides) -> Result:
+             unsafe_dt: bool = False, probes=None, resume: str | None = None,
+             overwrite: bool = False, run_info: dict | None = None,
+             **physics_overrides) -> Result:
     """Run ``scene`` to ``t_end`` (default scene.t_end) in compiled chunks.
 
-    output      HDF5 path (an .xdmf sidecar is written next to it); None: no file
+    output      HDF5 path (an .xdmf sidecar is written next to it); None: no file. An
+                existing file is refused unless ``overwrite`` (and only if fpsi-jax wrote it)
     every       seconds between frames (default t_end/100); also the chunk length
     dt          time step; default: the stability bound; larger than the bound is refused
                 unless ``unsafe_dt`` (stress tests)
@@ -212,10 +232,26 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
     probes      :class:`~fpsi_jax.run.probes.Probe` list recorded every step: returned in
                 ``Result.probes``, written to ``/probes`` of the output file and to
                 ``<output>_probes.csv`` (up to the last good chunk if the run goes unstable)
+    resume      an output file of a stopped run of the same scene and settings: the run
+                continues from its last complete frame (every leaf of the state restored,
+                neighbour lists and contact history included; bitwise what the
+                uninterrupted run gives on CPU) and appends to that file
+    run_info    JSON-able record of how the run was started, kept in the file (``fpsi run``
+                stores its arguments there for ``--resume``)
     physics_overrides   Physics options (e.g. delta_sph=True, x64=True)
+
+    SIGINT and SIGTERM stop the run at the end of the current chunk with
+    :class:`~fpsi_jax.model.errors.Interrupted` (the file says ``status = interrupted``); a
+    write error stops it with :class:`~fpsi_jax.run.io.OutputError` (``status = failed``).
     """
     t_end = number("t_end", scene.t_end if t_end is None else t_end, 0.0, None, lo_open=True)
     every = t_end / 100 if every is None else number("every", every, 0.0, t_end, lo_open=True)
+    ck = None
+    if resume is not None:
+        ck = io.load_checkpoint(resume)
+        output = str(resume)
+    elif output:
+        io.check_output(output, overwrite)
     phys, params = setup(scene, dt, params, unsafe_dt=unsafe_dt, **physics_overrides)
     dt = float(params.dt)
     p = params.as_arrays(stages.dtype(phys))
@@ -227,17 +263,25 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
     if probes:
         record = probing.observer(probes)
         observe = lambda s: (None if user_observe is None else user_observe(s), record(s))
-    state = init.init_state(scene, phys, p) if state is None else state
-    writer = Writer(output, scene, phys, params, probes) if output else None
-    if writer:
-        writer.write(state)
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-        bar = tqdm(total=n_total, desc=scene.name, unit="step", leave=False)
-    obs_chunks, done, reallocs, compile_s, first = [], 0, 0, 0.0, 0
+    if ck is not None:
+        phys = grown_like(phys, ck.physics)
+        state = io.restore(init.init_state(scene, phys, p), ck)
+        io.truncate_probes(output, float(state.t))
+    elif state is None:
+        state = init.init_state(scene, phys, p)
+    done = int(state.step)
+    writer = None
+    if output:
+        writer = Writer(output, scene, phys, params, probes, run_info=run_info,
+                        resume=ck is not None)
+    obs_chunks, reallocs, compile_s, first = [], 0, 0.0, 0
     t0 = time.perf_counter()
+    bar = _Progress(scene.name, n_total, done) if progress else None
+    stop = _StopSignals()
+    status, message = "finished", ""
     try:
+        if writer and ck is None:
+            writer.write(state)
         while done < n_total:
             n = min(chunk, n_total - done)
 
@@ -248,7 +292,7 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
 
             c = run_until_fits(attempt, phys, state, dt, output=output)
             phys, state, reallocs = c.phys, c.end, reallocs + c.regrowths
-            if done == 0:
+            if not first:
                 compile_s = time.perf_counter() - t0   # compile + first chunk
                 first = n
             obs = jax.tree_util.tree_map(lambda a: a[:n], c.result)   # rows past n unused
@@ -260,20 +304,30 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
             if writer:
                 writer.write(state)
             if bar:
-                bar.update(n)
+                bar.advance(n, excluded(state))
+            if stop.signal and done < n_total:
+                err = Interrupted(stop.signal, done, done * dt,
+                                  writer.frames if writer else 0, output)
+                status, message = "interrupted", str(err)
+                raise err
     except SimulationError as e:
-        if writer:
-            writer.close("unstable", str(e))
-            writer = None
+        status, message = "unstable", str(e)
+        raise
+    except io.OutputError as e:
+        status, message = "failed", str(e)
+        raise
+    except BaseException as e:            # anything else: the file says it did not finish
+        if status == "finished":
+            status, message = "failed", f"{type(e).__name__}: {e}"
         raise
     finally:
+        stop.restore()
         if bar:
             bar.close()
         if writer:
-            writer.close()
+            writer.close(status, message)
         if output and probes:
-            probing.write_csv(probing.csv_path(output), probes,
-                              (np.arange(done) + 1) * dt, _stack(obs_chunks, probes)[1])
+            _write_probe_csv(output, probes)
     wall = time.perf_counter() - t0
     observations, probe_values = None, None
     if obs_chunks:
@@ -283,7 +337,83 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
     return Result(state=state, physics=phys, params=params, n_steps=done, wall_s=wall,
                   compile_s=compile_s, rebuilds=int(state.status.rebuilds),
                   reallocations=reallocs, observations=observations, output=output,
-                  first_chunk_steps=first, probes=probe_values)
+                  first_chunk_steps=first, probes=probe_values,
+                  steps_run=done - (ck and int(ck.leaves[".step"]) or 0))
+
+
+def grown_like(phys: Physics, saved: dict) -> Physics:
+    """``phys`` with the neighbour-list sizes of ``saved`` (a run's Physics as JSON, as it
+    had grown when it was checkpointed)."""
+    for key in ("neighbors", "dem_neighbors"):
+        cfg, old = getattr(phys, key), saved.get(key)
+        if cfg is not None and old:
+            cfg = dataclasses.replace(cfg, r_cut=float(old["r_cut"]),
+                                      extra_capacity=int(old["extra_capacity"]))
+            phys = dataclasses.replace(phys, **{key: cfg})
+    return dataclasses.replace(phys, h_margin=float(saved.get("h_margin", phys.h_margin)))
+
+
+def excluded(state: State) -> int:
+    """Particles (fluid and discs) that have left through an open side."""
+    return sum(int(np.sum(np.asarray(b.t_out) >= 0)) for b in (state.fluid, state.solid)
+               if b is not None and b.t_out is not None)
+
+
+class _StopSignals:
+    """SIGINT and SIGTERM set ``signal`` (their name) instead of stopping the process, so
+    the driver stops at the end of the chunk; the old handlers come back on restore()."""
+
+    def __init__(self):
+        self.signal, self.old = None, {}
+        if threading.current_thread() is not threading.main_thread():
+            return
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self.old[sig] = signal.signal(sig, self._set)
+
+    def _set(self, signum, frame):
+        self.signal = signal.Signals(signum).name
+
+    def restore(self):
+        for sig, handler in self.old.items():
+            signal.signal(sig, handler)
+        self.old = {}
+
+
+class _Progress:
+    """The progress line: 'compiling' until the first chunk is back, then a bar whose rate
+    and ETA count only the steps after it; the excluded particles as a postfix."""
+
+    def __init__(self, name, total, done):
+        from tqdm.auto import tqdm
+        self.tqdm, self.name, self.total = tqdm, name, total
+        self.bar = tqdm(total=None, desc=f"{name}: compiling", unit="", leave=False,
+                        bar_format="{desc} {elapsed}")
+        self.first, self.done = True, done
+
+    def advance(self, n, n_out):
+        self.done += n
+        if self.first:
+            self.bar.close()
+            self.bar = self.tqdm(total=self.total, initial=self.done, desc=self.name,
+                                 unit="step", leave=False)
+            self.first = False
+        else:
+            self.bar.update(n)
+        if n_out:
+            self.bar.set_postfix(left=n_out, refresh=False)
+
+    def close(self):
+        self.bar.close()
+
+
+def _write_probe_csv(output, probes):
+    """``<output>_probes.csv`` from the file's /probes (every row, resumed runs too)."""
+    import h5py
+    with h5py.File(output, "r", locking=False) as f:
+        g = f["probes"]
+        values = {pr.name: g[pr.name][:] for pr in probes}
+        times = g["time"][:]
+    probing.write_csv(probing.csv_path(output), probes, times, values)
 
 
 def _stack(obs_chunks, probes):
