@@ -20,7 +20,7 @@ scene = Scene(
     params=Params(sph=SphParams(rho0=1000.0, c0=c0, mu=1.0e-3, dp=dx, alpha=0.02),
                   dem=DemParams(kn=post.kn, ks=post.ks, mu=0.3), bond=post.bond),
     fluid=water, boundary=tank.boundary, solid=post.solid, bonds=post.bonds,
-    walls=tank.walls,
+    walls=tank.walls, open_sides=("top",),        # a splash over the top leaves, counted
     options={"fsi": "extrapolated", "boundary_pressure": "extrapolated",
              "delta_sph": True, "artificial_viscosity": True})
 

@@ -11,6 +11,16 @@ if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _release_compiled_programs():
+    """Drop JAX's compiled programs after each test module. One process that compiles the
+    whole suite's programs (several hundred) otherwise runs out of the memory maps LLVM
+    places its code in (vm.max_map_count = 65530) and XLA dies with a segmentation fault
+    late in the run."""
+    yield
+    jax.clear_caches()
+
+
 @pytest.fixture
 def tiny_tank():
     """A 10 cm tank of water, 2 cm spacing: ~25 fluid particles, compiles in seconds."""

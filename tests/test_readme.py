@@ -33,8 +33,8 @@ COMMANDS = {
     "fpsi validate --quick": None,                    # every quick case: tests/cases, slow here
     "fpsi validate hydrostatic_plate --set water_height=0.1 --json v.json":
         "--set dx=0.005 --set d=0.0035 --set dx_boundary=0.0035 --set t_end=0.02",
-    "fpsi calibrate examples/calibrate/cantilever_synthetic.toml --out results/cal":
-        "--steps 1",
+    # the same fit runs in tests/cli/test_calibrate_cli.py; as written under -m slow
+    "fpsi calibrate examples/calibrate/cantilever_synthetic.toml --out results/cal": None,
     "fpsi run examples/dam_break_on_post.toml --plot --out results/post.h5": "--t-end 0.004",
     "fpsi calibrate examples/dam_break_on_post.toml --data my_recording.csv --probe top "
     "--fit post.E,damping --start damping=0.5 --window 0,0.3 --holdout 0.3,0.6": None,   # 0.6 s per step: slow
@@ -99,6 +99,7 @@ def test_readme_command_runs(command, scratch):
         assert rec["case"] == "hydrostatic_plate" and np.isfinite(rec["value"])
 
 
+@pytest.mark.slow        # a scene-file fit also runs in tests/calibrate/test_usercase.py
 def test_readme_calibration_of_a_scene_file_runs_short(scratch):
     """The scene-file calibration with a recording of its own length, a short window and
     one step (the README's 0.6 s windows run under -m slow)."""
