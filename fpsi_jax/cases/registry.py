@@ -21,6 +21,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..model import limits
 from ..model.errors import ParameterError, fmt, number
 
 
@@ -159,13 +160,27 @@ def check_kinds(name: str, kwargs: dict) -> dict:
             if not isinstance(v, (bool, np.bool_)):
                 raise ParameterError(f"{what} = {fmt(v)} is not true or false")
         elif isinstance(default, int):
-            v = number(what, v, integer=True)
+            # an integer keyword counts particles, rows or columns: never more than the
+            # machine holds (model.limits)
+            v = _kind(number, what, v, default, integer=True, hi=limits.max_particles())
         elif isinstance(default, float) or (default is None and v is not None):
-            v = number(what, v)
+            v = _kind(number, what, v, default)
+            if k == "t_end" and v is not None:         # every scene's end time
+                v = number(what, v, 0.0, None, lo_open=True)
         elif isinstance(default, str) and not isinstance(v, str):
             raise ParameterError(f"{what} = {fmt(v)} is not a string (default {default!r})")
         out[k] = v
     return out
+
+
+def _kind(check, what, v, default, **kw):
+    """``check(what, v, **kw)`` with the default named in its message (the builder's own
+    range check follows for a value of the right kind)."""
+    try:
+        return check(what, v, **kw)
+    except ParameterError as e:
+        tail = "derived from the scene" if default is None else fmt(default)
+        raise ParameterError(f"{e} (default {tail})") from None
 
 
 def data_path(name: str):
