@@ -25,7 +25,7 @@ import os
 import sys
 
 from fpsi_jax.cases import overrides as ov
-from fpsi_jax.model.errors import ParameterError, SimulationError
+from fpsi_jax.model.errors import ParameterError, SimulationError, fmt, number
 
 from . import cases
 from .fit import OPTIMIZERS, fit, plot_fit
@@ -72,8 +72,62 @@ def add_parser(sub):
     return c
 
 
+def check_args(args) -> None:
+    """The numeric flags and the output folder, checked before anything is read or built."""
+    from fpsi_jax.run import io
+    number("--lr", args.lr, 0.0, None, lo_open=True)
+    if args.noise is not None:
+        number("--noise", args.noise, 0.0, None, lo_open=True)
+    if args.steps is not None and args.steps < 1:
+        raise ParameterError(f"--steps = {args.steps} out of range; allowed [1, inf)")
+    io.check_output(args.out, kind="folder")
+
+
+#: ranges (lo, hi, lo_open, hi_open) of the ready-made cases' numeric keywords (others:
+#: (0, inf))
+CASE_RANGES = {"damping": (0.0, None, False, False), "zeta": (0.0, 1.0, True, True)}
+
+
+def check_case_kwargs(name: str, builder, kw: dict) -> dict:
+    """A ready-made case's own keywords checked by the kind of their default (numbers
+    finite and in range, bounds two numbers 0 < lo < hi, ``chunk`` a positive integer,
+    switches true/false); the scene's keywords by the scene builder's kinds."""
+    from fpsi_jax.cases import registry
+    sig = inspect.signature(builder).parameters
+    out, scene_kw = {}, {}
+    for k, v in kw.items():
+        q = sig.get(k)
+        if q is None or q.kind != q.KEYWORD_ONLY:
+            scene_kw[k] = v
+            continue
+        default, what = q.default, f"calibration case {name!r}: {k}"
+        if isinstance(default, bool):
+            if not isinstance(v, bool):
+                raise ParameterError(f"{what} = {fmt(v)} is not true or false")
+        elif k == "chunk":
+            if v is not None:
+                v = number(what, v, 1, None, integer=True)
+        elif isinstance(default, tuple):
+            if not (isinstance(v, (list, tuple)) and len(v) == 2):
+                raise ParameterError(f"{what} = {fmt(v)} is not two numbers [lo, hi] with "
+                                     "0 < lo < hi")
+            lo = number(f"{what}[0]", v[0], 0.0, None, lo_open=True)
+            v = (lo, number(f"{what}[1]", v[1], lo, None, lo_open=True))
+        elif isinstance(default, (int, float)) or default is None:
+            if not (default is None and v is None):
+                lo, hi, lo_open, hi_open = CASE_RANGES.get(k, (0.0, None, True, False))
+                v = number(what, v, lo, hi, lo_open, hi_open)
+        elif isinstance(default, str) and not isinstance(v, str):
+            raise ParameterError(f"{what} = {fmt(v)} is not a string (default {default!r})")
+        out[k] = v
+    if scene_kw:
+        scene_kw = registry.check_kinds(cases.SCENE_OF[name], scene_kw)
+    return {**out, **scene_kw}
+
+
 def run(args) -> int:
     from fpsi_jax.cli import is_scene_file
+    check_args(args)
     if is_scene_file(args.case):
         return run_file(args)
     file_only = [f"--{k}" for k in ("data", "fit", "probe", "window", "holdout", "target",
@@ -130,9 +184,8 @@ def run_case(args) -> int:
     if bad:
         raise ParameterError(f"unknown key {bad[0]!r} for calibration case {args.case!r}; "
                              f"allowed: {', '.join(allowed)}")
+    kw = check_case_kwargs(args.case, builder, kw)
     steps = 30 if args.steps is None else args.steps
-    if steps < 1:
-        raise ParameterError(f"--steps = {steps} out of range; allowed [1, inf)")
     case = builder(**kw)
     res = fit(case.calibration, optimizer=args.optimizer or "lm", learning_rate=args.lr,
               max_steps=steps, noise=args.noise, progress=not args.quiet,
