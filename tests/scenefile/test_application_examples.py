@@ -36,6 +36,7 @@ def test_example_files_fit_in_forty_lines():
         assert len((EXAMPLES / f"{name}.toml").read_text().splitlines()) <= 40, name
 
 
+@pytest.mark.slow             # ~20 s on 2 cores: make test-slow (keeps make test under 10 min)
 def test_flood_wave_lifts_the_log_and_loads_the_deck():
     case = coarse("flood_bridge_debris", 0.5)
     res, p = run(case)
@@ -51,6 +52,7 @@ def test_flood_wave_lifts_the_log_and_loads_the_deck():
     assert fx.max() > 1.0
 
 
+@pytest.mark.slow             # ~20 s on 2 cores: make test-slow
 def test_slosh_bends_the_baffle_towards_the_low_side():
     case = coarse("sloshing_baffle", 0.4)
     res, p = run(case)
