@@ -62,7 +62,7 @@ if __name__ == "__main__":
         h5 = os.path.join(tempfile.mkdtemp(), f"fpsi_failure_{case}.h5")
         t0 = time.perf_counter()
         dt = args.dt_factor * float(setup(scene, **phys)[1].dt)
-        res = simulate(scene, output=h5, every=0.01, progress=False, dt=dt, **phys)
+        res = simulate(scene, output=h5, every=0.01, progress=False, dt=dt, overwrite=True, **phys)
         wall = time.perf_counter() - t0
         run = io.read(h5)
         tb = np.asarray(run.breaks.get("time", []))

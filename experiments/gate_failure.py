@@ -32,7 +32,7 @@ if __name__ == "__main__":
     scene, phys = ov.build("gate_failure", {**base, **ov.parse_pairs(args.set)})
     h5 = os.path.join(tempfile.mkdtemp(), "gate_failure.h5")
     t0 = time.perf_counter()
-    res = simulate(scene, output=h5, every=0.005, progress=False, **phys)
+    res = simulate(scene, output=h5, every=0.005, progress=False, overwrite=True, **phys)
     wall = time.perf_counter() - t0
     run = io.read(h5)
     brk = run.breaks

@@ -70,7 +70,8 @@ if __name__ == "__main__":
     h5 = os.path.join(tempfile.mkdtemp(), "two_phase_dam_break.h5")
     t0 = time.perf_counter()
     dt = args.dt_factor * float(setup(scene, **phys)[1].dt)
-    res = simulate(scene, output=h5, every=0.05, progress=False, observe=fronts, dt=dt, **phys)
+    res = simulate(scene, output=h5, every=0.05, progress=False, observe=fronts, dt=dt,
+                   overwrite=True, **phys)
     wall = time.perf_counter() - t0
     a, g = b["a"], 9.81
     xf, xg = (np.asarray(o, float) for o in res.observations)

@@ -30,7 +30,7 @@ def one(wall_repulsion, folder):
     t0 = time.perf_counter()
     error = None
     try:
-        simulate(scene, t_end=T_END, output=out, every=EVERY, progress=False,
+        simulate(scene, t_end=T_END, output=out, every=EVERY, progress=False, overwrite=True,
                  wall_repulsion=wall_repulsion)
     except SimulationError as e:
         error = str(e).splitlines()[0]
