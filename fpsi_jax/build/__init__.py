@@ -11,17 +11,18 @@ from ..model.errors import check_positive
 from .fluid import (G, dam_speed, fit_spacing, fluid_among_grains, fluid_block,
                     fluid_polygon, fluid_rectangle, hydrostatic_fluid, sound_speed, sph_params)
 from .geometry import (box_walls, hex_packing, in_region, inside_polygon, lattice,
-                       polygon_lattice, square_packing, tank_walls, touching_pairs)
+                       polygon_lattice, span_spacing, square_packing, tank_walls,
+                       touching_pairs)
 from .materials import hexagonal_strength, k42_mapping, lattice_mapping, shear_modulus
 from .solids import (MASS_MODELS, PACKINGS, Structure, bonded_body, bonded_rectangle, clamp,
-                     disc_block, grain_bed, merge, move, packing)
+                     disc_block, grain_bed, merge, move, packing, strip_ends)
 from .tank import Tank, boundary_block, boundary_layers, domain, tank
 
 __all__ = ["check_positive", "G", "dam_speed", "fit_spacing", "fluid_among_grains", "fluid_block", "fluid_polygon",
            "fluid_rectangle", "hydrostatic_fluid", "sound_speed", "sph_params", "box_walls",
            "hex_packing", "in_region", "inside_polygon", "lattice", "polygon_lattice",
-           "square_packing", "tank_walls", "touching_pairs", "hexagonal_strength",
+           "span_spacing", "square_packing", "tank_walls", "touching_pairs", "hexagonal_strength",
            "k42_mapping", "lattice_mapping", "shear_modulus", "MASS_MODELS", "PACKINGS",
            "Structure", "bonded_body", "bonded_rectangle", "clamp", "disc_block", "grain_bed",
-           "merge", "move", "packing", "Tank", "boundary_block", "boundary_layers", "domain",
+           "merge", "move", "packing", "strip_ends", "Tank", "boundary_block", "boundary_layers", "domain",
            "tank"]

@@ -58,22 +58,45 @@ def hex_packing(x0, y0, width, height, d, first_row_long=True):
     return np.concatenate(pts)
 
 
-def square_packing(x0, y0, width, height, d):
-    """Square-packed disc centres filling [x0, x0+width] × [y0, y0+height]."""
+def square_packing(x0, y0, width, height, d, stretch=False):
+    """Square-packed disc centres filling [x0, x0+width] × [y0, y0+height], rows and columns
+    d apart, every disc inside the rectangle.
+
+    ``stretch=True`` builds a strip of exactly the rectangle's length instead: the columns
+    stand on both ends x0 and x0 + width, s = :func:`span_spacing` (width, d) ≥ d apart (a
+    79.375 mm strip at d = 1.25 mm: 64 columns 1.2599 mm apart, where d-spaced columns
+    would span 78.75 or 80 mm); the rows stay d apart. The bonds across the gaps s − d are
+    beam elements of length s (physics/bonds.py); :func:`touching_pairs` (``gap=s − d``)
+    finds them."""
     _cells(width, height, d, "a packing")
-    nx, ny = int(math.floor(width / d + 1e-9)), int(math.floor(height / d + 1e-9))
-    if nx < 1 or ny < 1:
+    ny = int(math.floor(height / d + 1e-9))
+    if stretch:
+        sx = span_spacing(width, d)
+        xs = x0 + sx * np.arange(int(round(width / sx)) + 1)
+    else:
+        xs = x0 + d / 2 + d * np.arange(int(math.floor(width / d + 1e-9)))
+    if xs.size < 1 or ny < 1:
         raise ParameterError(f"a {width} × {height} rectangle holds no disc of diameter {d}")
-    X, Y = np.meshgrid(x0 + d / 2 + d * np.arange(nx), y0 + d / 2 + d * np.arange(ny),
-                       indexing="ij")
+    X, Y = np.meshgrid(xs, y0 + d / 2 + d * np.arange(ny), indexing="ij")
     return np.stack([X.ravel(), Y.ravel()], axis=1)
 
 
-def touching_pairs(x, radius, tol=1e-6):
-    """Pairs (i < j) whose discs touch or overlap (|x_i − x_j| ≤ (R_i + R_j)(1 + tol)):
-    the nearest-neighbour bonds of a packing. Cell binning, O(n)."""
+def span_spacing(span, d):
+    """The spacing s = L/n, n = ⌊L/d⌋, closest to d that puts disc centres exactly L apart
+    along a line (s ≥ d, so neighbours never overlap: s − d < d/n). L = 79.375 mm at
+    d = 1.25 mm: 63 intervals of 1.2599 mm."""
+    n = int(math.floor(span / d + 1e-9))
+    if n < 1:
+        raise ParameterError(f"span = {span} holds no interval of a disc diameter d = {d}")
+    return span / n
+
+
+def touching_pairs(x, radius, tol=1e-6, gap=0.0):
+    """Pairs (i < j) whose discs touch or overlap (|x_i − x_j| ≤ (R_i + R_j + gap)(1 + tol)):
+    the nearest-neighbour bonds of a packing (``gap`` > 0: of a stretched packing).
+    Cell binning, O(n)."""
     x = np.asarray(x, float)
-    r = np.broadcast_to(np.asarray(radius, float), (x.shape[0],))
+    r = np.broadcast_to(np.asarray(radius, float), (x.shape[0],)) + 0.5 * gap
     cell = 2.0 * r.max() * (1 + tol)
     key = np.floor((x - x.min(0)) / cell).astype(np.int64)
     cells: dict = {}

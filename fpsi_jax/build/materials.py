@@ -22,7 +22,8 @@ def shear_modulus(E, nu):
     return E / (2.0 * (1.0 + nu))
 
 
-def k42_mapping(E, nu, radius, lam=1.0, plate=False, contact_fraction=None, plane_strain=False):
+def k42_mapping(E, nu, radius, lam=1.0, plate=False, contact_fraction=None, plane_strain=False,
+                touching=True):
     """Bond and contact stiffnesses of K42–K43 for equal discs of radius R (R_A + R_B = 2R):
     k̄_n = E/(2R), k̄_s = G/(2R), k_n = E·2R̄/(2R) = λE, k_s = λG.
 
@@ -32,7 +33,11 @@ def k42_mapping(E, nu, radius, lam=1.0, plate=False, contact_fraction=None, plan
     ``contact_fraction=None`` keeps K's contact springs (k_n = λE: as stiff as the bond, so a
     bonded pair is twice as stiff in compression as in tension). A number c splits the same
     total stiffness as W26–W30 do instead: A k̄ + k = K42's A k̄ with k = c A k̄ (W: c = 0.01),
-    so tension and compression differ by the fraction c only.
+    so tension and compression differ by the fraction c only. ``touching=False`` is a
+    stretched lattice (bonded discs a small gap apart, ``square_packing(column_spacing=…)``):
+    there a bonded pair's contact spring never acts while the bond holds, so the bond keeps
+    K42's whole stiffness and the contact springs the share c/(1 + c) (they act once the
+    gap closes or the bond has broken).
 
     ``plane_strain=True`` maps a 2D slice of a wide plate (cylindrical bending): the normal
     stiffnesses use E' = E/(1−ν²), so the bonded strip has the plate's D = Ee³/(12(1−ν²))
@@ -57,7 +62,8 @@ def k42_mapping(E, nu, radius, lam=1.0, plate=False, contact_fraction=None, plan
         return dict(bond_kn=bkn, bond_ks=bks, kn=kn, ks=ks)
     require("contact_fraction", contact_fraction, 0.0, None)
     f = 1.0 + contact_fraction
-    return dict(bond_kn=bkn / f, bond_ks=bks / f, kn=contact_fraction * kn / f,
+    fb = f if touching else 1.0
+    return dict(bond_kn=bkn / fb, bond_ks=bks / fb, kn=contact_fraction * kn / f,
                 ks=contact_fraction * ks / f)
 
 

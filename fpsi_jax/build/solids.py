@@ -20,13 +20,13 @@ MASS_MODELS = ("disc", "lattice", "sphere")
 
 
 def disc_block(x, radius, rho, mass_model="disc", d_lattice=None, packing="hex",
-               thickness=1.0, fixed=None, f_ext=None, v=None):
+               thickness=1.0, fixed=None, f_ext=None, v=None, column_spacing=None):
     """SolidBlock for discs at ``x``.
 
     mass_model  'disc':    m = ρπR²t, J = ½mR² (PFC2D default, physics.md §Conventions)
                 'lattice': m = ρ·(cell area)·t with the cell of the packing, (√3/2)d²
-                           (hex) or d² (square): the structure's mass per area is exactly ρ;
-                           J = ½mR²
+                           (hex) or d² (square; d·s with columns ``column_spacing`` s
+                           apart): the structure's mass per area is exactly ρ; J = ½mR²
                 'sphere':  m = ρ(4/3)πR³, J = (2/5)mR² (K6.1: "particles considered
                            spherical")
     """
@@ -40,7 +40,8 @@ def disc_block(x, radius, rho, mass_model="disc", d_lattice=None, packing="hex",
         J = 0.5 * m * R ** 2
     elif mass_model == "lattice":
         d = 2 * R if d_lattice is None else np.full(n, d_lattice)
-        cell = (np.sqrt(3) / 2 if packing == "hex" else 1.0) * d ** 2
+        sx = d if column_spacing is None else column_spacing
+        cell = (np.sqrt(3) / 2 if packing == "hex" else 1.0) * d * sx
         m = rho * cell * thickness
         J = 0.5 * m * R ** 2
     else:
@@ -56,13 +57,30 @@ def disc_block(x, radius, rho, mass_model="disc", d_lattice=None, packing="hex",
 PACKINGS = ("hex", "square")
 
 
-def packing(x0, y0, width, height, d, kind="hex"):
+def packing(x0, y0, width, height, d, kind="hex", stretch=False):
     """Disc centres of diameter ``d`` filling [x0, x0+width] × [y0, y0+height]: 'hex'
-    (:func:`~.geometry.hex_packing`) or 'square' (:func:`~.geometry.square_packing`)."""
+    (:func:`~.geometry.hex_packing`) or 'square' (:func:`~.geometry.square_packing`;
+    ``stretch``: a strip whose end columns stand on x0 and x0 + width)."""
     if kind not in PACKINGS:
         raise ParameterError(f"packing = {kind!r} is not a choice; allowed: {', '.join(PACKINGS)}")
     check_positive(width=width, height=height, d=d)
-    return (hex_packing if kind == "hex" else square_packing)(x0, y0, width, height, d)
+    if kind == "hex":
+        if stretch:
+            raise ParameterError("stretch applies to the square packing only")
+        return hex_packing(x0, y0, width, height, d)
+    return square_packing(x0, y0, width, height, d, stretch)
+
+
+def strip_ends(blk: SolidBlock, x0, x1) -> SolidBlock:
+    """Halve the mass and moment of inertia of the discs centred on x = x0 and x = x1: the
+    lumped masses of a strip that ends at its end columns' centres (a stretched packing,
+    ``packing(stretch=True)``), each end column standing for half a cell, so the strip's
+    mass is ρ·height·length and its first frequency that of a strip of that length."""
+    tol = 1e-9 * float(blk.radius.max())
+    ends = (np.abs(blk.x[:, 0] - x0) <= tol) | (np.abs(blk.x[:, 0] - x1) <= tol)
+    blk.mass = np.where(ends, 0.5 * blk.mass, blk.mass)
+    blk.inertia = np.where(ends, 0.5 * blk.inertia, blk.inertia)
+    return blk
 
 
 def grain_bed(x0, y0, width, height, d, rho, kind="hex", n=None) -> SolidBlock:

@@ -10,9 +10,9 @@ with section A and second moment I:
 **Which law.** This is the *co-rotational total-displacement* form of the incremental law
 K17–K20 / W35–W36 (physics.md allows it): instead of summing increments,
 
-    F̄_n = k̄_n A (d − d0)                                   (tension positive)
-    U_s = d0 Δφ − ℓ_A Δθ_A − ℓ_B Δθ_B,  F̄_s = −k̄_s A U_s
-    M̄  = −k̄_n I (Δθ_B − Δθ_A)
+    F̄_n = k̄_n c A (d − d0)                                 (tension positive)
+    U_s = d0 Δφ − ℓ_A Δθ_A − ℓ_B Δθ_B,  F̄_s = −k̄_s c A U_s
+    M̄  = −k̄_n c I (Δθ_B − Δθ_A),        c = (R_A + R_B)/d0
 
 with Δφ the rotation of the bond axis since it was made and Δθ the discs' rotations since
 then, ℓ_A = d0 R_A/(R_A + R_B) (= R_A for touching discs). Differentiating in time gives
@@ -20,6 +20,13 @@ back exactly the increments of K17–K20 (ΔU_n = (v_B − v_A)·n Δt, ΔU_s = 
 Δθ = (ω_B − ω_A)Δt) to first order in the deformation, but the total form neither drifts
 with round-off nor produces forces under a rigid rotation (U_s = 0 when Δφ = Δθ_A = Δθ_B),
 and it needs no force history, which keeps gradients short.
+
+**Bonds across a gap.** K42 maps k̄_n = E/(R_A + R_B) for touching discs, the stiffness
+per area of a bar of length R_A + R_B; the factor c makes a bond between discs a rest length
+d0 apart the bar (and beam element) of *that* length: axial stiffness EA/d0, bending EI/d0,
+shear GA/d0. c = 1 for touching discs (every packing's nearest neighbours), so the factor
+only acts where a builder stretches a lattice to fit a span (``square_packing(stretch=…)``:
+a cantilever of 79.375 mm at d = 1.25 mm has columns 1.2599 mm apart).
 
 Forces and moments: on B −F̄_n n + F̄_s t and M̄ − F̄_s ℓ_B; on A the opposite force and
 −M̄ − F̄_s ℓ_A (the shear force acts at the contact point, as for contacts).
@@ -71,9 +78,10 @@ def bond_loads(bp, kind, x, theta, radius, i, j, d0, e0):
     dphi = mean + jnp.arctan2(jnp.sin(raw - mean), jnp.cos(raw - mean))
     la, lb = d0 * ra / (ra + rb), d0 * rb / (ra + rb)
     us = d0 * dphi - lb * theta[j] - la * theta[i]
-    fn = bp.kn * area * (d - d0)
-    fs = -bp.ks * area * us
-    m = -bp.kn * inertia * (theta[j] - theta[i])
+    c = (ra + rb) / d0
+    fn = bp.kn * c * area * (d - d0)
+    fs = -bp.ks * c * area * us
+    m = -bp.kn * c * inertia * (theta[j] - theta[i])
     return fn, fs, m, n, la, lb, area, inertia, r_bar
 
 

@@ -16,8 +16,8 @@ import numpy as np
 from ..build import (boundary_block, boundary_layers, box_walls, dam_speed, disc_block,
                      fit_spacing, fluid_among_grains, hydrostatic_fluid, in_region,
                      inside_polygon, k42_mapping, lattice, merge, move, packing,
-                     polygon_lattice, sound_speed, domain, sph_params, tank_walls,
-                     touching_pairs)
+                     polygon_lattice, sound_speed, domain, span_spacing, sph_params,
+                     strip_ends, tank_walls, touching_pairs)
 from ..model.params import BondParams, DemParams, FpiParams, Params
 from ..model.scene import BondBlock, FluidBlock, Scene, WallBlock
 from ..run import probes as P
@@ -164,8 +164,10 @@ def _positions(path, tname, item, i):
     try:
         if how == "box":
             x0, y0, x1, y1 = item["box"]
-            x = packing(x0, y0, x1 - x0, y1 - y0, d, kind)
+            x = packing(x0, y0, x1 - x0, y1 - y0, d, kind, stretch=_stretch(item))
         else:
+            if _stretch(item):
+                raise ValueError("stretch needs a box")
             v = np.asarray(item["polygon"], float)
             lo, hi = v.min(0), v.max(0)
             x = packing(lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1], d, kind)
@@ -182,6 +184,18 @@ def _positions(path, tname, item, i):
     return x, d / 2, kind
 
 
+def _stretch(item) -> bool:
+    return bool(item.get("stretch"))
+
+
+def _spacing(item):
+    """The column spacing of a stretched box (``stretch = true``), else None."""
+    if not _stretch(item) or item.get("box") is None:
+        return None
+    x0, _, x1, _ = item["box"]
+    return span_spacing(x1 - x0, item["d"])
+
+
 def _group(path, tname, item, i):
     """(SolidBlock, BondBlock or None) of one disc group."""
     x, R, kind = _positions(path, tname, item, i)
@@ -190,8 +204,12 @@ def _group(path, tname, item, i):
     if vel.ndim == 2 and vel.shape[0] != n:
         fail(path, tname, f"key 'velocity' has {vel.shape[0]} vectors for {n} discs", item, i)
     v = np.broadcast_to(vel, (n, 2)).copy()
+    s = _spacing(item)
     blk = disc_block(x, R, item["rho"], mass_model=item["mass_model"],
-                     packing=kind or "square", thickness=item["thickness"], v=v)
+                     packing=kind or "square", thickness=item["thickness"], v=v,
+                     column_spacing=s)
+    if s is not None:
+        blk = strip_ends(blk, item["box"][0], item["box"][2])
     if tname == "structure":
         blk.sph_volume = np.full(n, (np.sqrt(3) / 2 if kind == "hex" else 1.0) * 4 * R * R)
     if tname in ("structure", "kinematic"):
@@ -217,7 +235,7 @@ def _group(path, tname, item, i):
         blk.f_ext = np.where(sel[:, None], f[None, :] / sel.sum(), blk.f_ext)
     bonds = None
     if tname == "structure" or item.get("bonds") == "touching":
-        bonds = touching_pairs(blk.x, R)
+        bonds = touching_pairs(blk.x, R, gap=0.0 if s is None else s - 2 * R)
         if bonds.n == 0:
             fail(path, tname, "no two discs touch: nothing to bond", item, i)
     return blk, bonds
@@ -243,8 +261,10 @@ def _material(path, items):
             continue
         d = 2 * (s["radius"] if s["points"] is not None and s["radius"] is not None
                  else s["d"] / 2)
+        sp = _spacing(s)
         k = k42_mapping(s["E"], s["nu"], d / 2, contact_fraction=s["contact_fraction"],
-                        plane_strain=s["plane_strain"])
+                        plane_strain=s["plane_strain"],
+                        touching=sp is None or sp <= d * (1 + 1e-9))
         f = s["shear_factor"]
         k = {**k, "bond_ks": k["bond_ks"] * f, "ks": k["ks"] * f}
         key = (k["bond_kn"], k["bond_ks"], k["kn"], k["ks"], s["sigma_c"], s["tau_c"])

@@ -160,6 +160,10 @@ table("structure", True, "A bonded body: discs glued by parallel bonds between t
           hi_open=True),
       Key("plane_strain", "bool", "", False, "map E/(1−ν²): a slice of a plate spanning "
           "the tank's width"),
+      Key("stretch", "bool", "", False, "with a square-packed `box`: a strip of exactly the "
+          "box's length, its end columns centred on x0 and x1, ⌊w/d⌋ gaps of w/⌊w/d⌋ ≥ d "
+          "(bonds across the gaps are beam elements of their length; the end columns carry "
+          "half a cell of mass; the bonds then keep all of K42's stiffness)"),
       Key("contact_fraction", "float", "", 0.01, "share of the stiffness in the contact "
           "springs (W26–W30)", lo=0.0),
       _pos("shear_factor", "", 1.0, "multiplies the shear springs"),

@@ -103,3 +103,36 @@ def test_merge_shifts_bond_indices():
     assert bonds.n == s.bonds.n and int(bonds.i.min()) == g.n
     assert solid.grain[:g.n].all() and not solid.grain[g.n:].any()
     assert solid.structure[g.n:].all() and not solid.structure[:g.n].any()
+
+
+def test_stretched_strip_has_its_end_columns_on_the_box_edges():
+    """79.375 mm at d = 1.25 mm: ⌊63.5⌋ = 63 gaps of 1.2599 mm, 64 columns from x = 0 to
+    x = L exactly; 4 rows d apart; the gap bonds found with gap = s − d, the diagonals not."""
+    L, d = 0.079375, 0.00125
+    s = build.span_spacing(L, d)
+    assert s == pytest.approx(L / 63, rel=1e-15) and s >= d
+    x = build.square_packing(0.0, -0.0025, L, 0.005, d, stretch=True)
+    xs = np.unique(x[:, 0])
+    assert xs.size == 64 and xs[0] == 0.0 and xs[-1] == pytest.approx(L, rel=1e-14)
+    np.testing.assert_allclose(np.unique(x[:, 1]), [-0.001875, -0.000625, 0.000625, 0.001875])
+    bonds = build.touching_pairs(x, d / 2, gap=s - d)
+    assert bonds.n == 63 * 4 + 64 * 3               # along the rows + across them
+    assert build.span_spacing(0.0025 * 4, 0.0025) == pytest.approx(0.0025, rel=1e-15)
+    with pytest.raises(ParameterError, match="span"):
+        build.span_spacing(0.001, 0.0025)
+
+
+def test_strip_ends_carry_half_a_cell():
+    """Lattice masses ρ·d·s per disc, halved on the end columns: the strip's mass is
+    ρ·height·L (1100·0.005·0.079375 = 0.43656 kg per m of thickness)."""
+    L, d, rho = 0.079375, 0.00125, 1100.0
+    s = build.span_spacing(L, d)
+    x = build.square_packing(0.0, -0.0025, L, 0.005, d, stretch=True)
+    blk = build.disc_block(x, d / 2, rho, mass_model="lattice", packing="square",
+                           column_spacing=s)
+    assert blk.mass[0] == pytest.approx(rho * d * s, rel=1e-14)
+    blk = build.strip_ends(blk, 0.0, L)
+    assert blk.mass.sum() == pytest.approx(rho * 0.005 * L, rel=1e-12)
+    assert blk.mass.sum() == pytest.approx(0.4365625, rel=1e-12)
+    ends = (x[:, 0] == 0.0) | (np.abs(x[:, 0] - L) < 1e-12)
+    np.testing.assert_allclose(blk.inertia[ends], 0.5 * blk.mass[ends] * (d / 2) ** 2)

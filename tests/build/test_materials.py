@@ -113,3 +113,13 @@ def test_hexagonal_strength_numbers():
     h2 = hexagonal_strength(1.0e6, 0.25, 0.005, thickness=3.0, lam=0.5)
     assert h2["sigma_c"] == pytest.approx(h["sigma_c"], rel=REL)
     assert h2["fn_crit"] == pytest.approx(h["fn_crit"] * 1.5, rel=REL)
+
+
+def test_k42_split_of_a_stretched_lattice_leaves_the_bond_whole():
+    """touching=False (bonded discs a gap apart: the contact springs cannot act while the
+    bond holds): k̄_n = E/2R itself, the contact springs keep c/(1 + c)."""
+    k = k42_mapping(10e6, 0.33, 0.000625, contact_fraction=0.01, touching=False)
+    assert k["bond_kn"] == pytest.approx(10e6 / 0.00125, rel=1e-15)
+    assert k["kn"] == pytest.approx(0.01 * 10e6 / 1.01, rel=1e-15)
+    t = k42_mapping(10e6, 0.33, 0.000625, contact_fraction=0.01)
+    assert t["bond_kn"] == pytest.approx(10e6 / 0.00125 / 1.01, rel=1e-15)

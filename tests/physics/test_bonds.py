@@ -95,6 +95,23 @@ def test_stretch_gives_normal_force_pulling_discs_together(u):
     assert alive[0] and mode[0] == 0
 
 
+def test_bond_across_a_gap_is_a_bar_of_its_rest_length():
+    """Discs R = 5 mm made 12 mm apart (gap 2 mm): c = (R_A + R_B)/d0 = 10/12, so
+    F̄_n = k̄_n c A u = 1e9·(5/6)·0.01·1e-5 = 83.33 N (a bar EA/d0 with k̄_n = E/2R),
+    M̄ = −k̄_n c I Δθ and F̄_s = −k̄_s c A U_s likewise; equal and opposite forces."""
+    x0 = [[0.1, 0.2], [0.112, 0.2]]
+    force, torque, alive, mode, fn, fs, m = one_bond([0.112 + 1e-5, 0.2], x0=x0)
+    assert fn[0] == pytest.approx(1e9 * (10 / 12) * 0.01 * 1e-5, rel=1e-9)
+    assert fn[0] == pytest.approx(83.33333333333333, rel=1e-9)
+    np.testing.assert_allclose(force[0] + force[1], 0.0, atol=1e-9)
+    _, _, _, _, _, _, m = one_bond([0.112, 0.2], theta=(0.0, 1e-4), x0=x0)
+    assert m[0] == pytest.approx(-KN * (10 / 12) * INERTIA * 1e-4, rel=1e-9)
+    # U_s = d0Δφ − ℓ_A θ_A − ℓ_B θ_B with ℓ = d0/2 for equal discs: B moved 1e-6 sideways
+    _, _, _, _, _, fs, _ = one_bond([0.112, 0.2 + 1e-6], x0=x0)
+    assert fs[0] == pytest.approx(-KS * (10 / 12) * AREA * 0.012 * math.atan2(1e-6, 0.012),
+                                  rel=1e-9)
+
+
 def test_circular_section_stretch():
     """Circular section with λ = 0.8: A = π(0.8 R)²."""
     bp = BondParams(kn=KN, ks=KS, lam=0.8)
