@@ -10,6 +10,7 @@ import numpy as np
 from ..build import (check_positive, dam_speed, disc_block, hydrostatic_fluid, lattice,
                      sound_speed, sph_params, tank)
 from ..model.errors import ParameterError
+from ..model.options import Drag, choose
 from ..model.params import DemParams, FpiParams, Params
 from ..model.scene import Scene
 from ..physics import fpi
@@ -25,7 +26,7 @@ SEDIMENTATION_REFERENCE = "sedimentation_zhang2019_fpm_pst_y_position.csv"
 def sedimentation(*, width=0.02, height=0.06, d=0.0025, rho_grain=1250.0, rho_fluid=1000.0,
                   mu=0.01, x0=0.01, y0=0.04, dx=0.0015, dx_boundary=0.00125, h0=0.003,
                   c0=None, kn=1.0e4, friction=0.3, beta_n=0.5,
-                  voidage="area", r_clump=0.01, eps_xsph=0.5, delta=0.1, x64=False,
+                  voidage="area", drag="cylinder", r_clump=0.01, eps_xsph=0.5, delta=0.1, x64=False,
                   t_end=1.0) -> Scene:
     """One grain (disc d = 2.5 mm, ρ 1250) released at rest at (``x0``, ``y0``) = (0.01,
     0.04) m in a ``width`` × ``height`` = 0.02 × 0.06 m box of fluid (ρ 1000, μ 0.01 Pa·s);
@@ -36,10 +37,13 @@ def sedimentation(*, width=0.02, height=0.06, d=0.0025, rho_grain=1250.0, rho_fl
     walls with a soft contact (``kn`` 1e4 N/m, β_n 0.5): only the landing depends on it.
     c0 = 10 √(2 g height). With ``rho_grain`` = ``rho_fluid`` the grain is neutrally
     buoyant; with a small ``d`` (ε → 1) it is the terminal-velocity case. ``dx`` is fitted
-    to fill ``width`` with whole columns (``builder_kwargs`` records the fitted value)."""
+    to fill ``width`` with whole columns (``builder_kwargs`` records the fitted value).
+    ``drag``: 'cylinder' (default: the disc is a cylinder per unit length, fpi.py) or
+    'sphere' (the seed's W19–W23)."""
     check_positive(width=width, height=height, d=d, rho_grain=rho_grain, rho_fluid=rho_fluid,
                    mu=mu, dx=dx, dx_boundary=dx_boundary, h0=h0, kn=kn, t_end=t_end)
     check_voidage(voidage)
+    choose(Drag, "drag", drag)
     if not (d / 2 < x0 < width - d / 2 and d / 2 < y0 < height - d / 2):
         raise ParameterError(f"grain start ({x0}, {y0}) out of range; allowed inside the box "
                              f"[{d / 2}, {width - d / 2}] × [{d / 2}, {height - d / 2}]")
@@ -62,7 +66,7 @@ def sedimentation(*, width=0.02, height=0.06, d=0.0025, rho_grain=1250.0, rho_fl
                                             beta_s=beta_n), fpi=FpiParams()),
         domain_lo=lo, domain_hi=hi, v_max=v_max,
         fluid=fluid, boundary=box.boundary, solid=grain, walls=box.walls, t_end=t_end, open_sides=("top",),
-        options={"fpi": True, "voidage": voidage, "delta_sph": True,
+        options={"fpi": True, "voidage": voidage, "drag": drag, "delta_sph": True,
                  "boundary_pressure": "extrapolated", "x64": x64},
         builder_kwargs=dict(dx=dx, c0=c0))
 
@@ -81,11 +85,14 @@ def grain_run(scene, **kw):
     return t, x, v, u, e, res
 
 
-def terminal_slip(eps, rho_p, rho_f, d, mu, g):
+def terminal_slip(eps, rho_p, rho_f, d, mu, g, law="sphere"):
     """The slip s at which the drag law balances weight minus buoyancy,
     (ρ_p − ρ_f) g = β(ε, s)/(1 − ε) s (W19–W23 per unit grain volume), by bisection."""
+    law = choose(Drag, "drag", law)
+
     def excess(s):
-        return (rho_p - rho_f) * g - float(fpi.interphase_beta(eps, s, rho_f, d, mu)) / (1 - eps) * s
+        beta = float(fpi.interphase_beta(eps, s, rho_f, d, mu, law))
+        return (rho_p - rho_f) * g - beta / (1 - eps) * s
     lo, hi = 0.0, 1.0
     while excess(hi) > 0:
         hi *= 2.0
@@ -114,7 +121,8 @@ def terminal_velocity_case(quick: bool = False, overrides: dict | None = None):
     slip = float(np.mean(u[late, 1] - v[late, 1]))
     eps = float(np.mean(e[late]))
     g = float(-np.asarray(res.params.gravity)[1])
-    ref = terminal_slip(eps, kw["rho_grain"], kw["rho_fluid"], kw["d"], kw["mu"], g)
+    ref = terminal_slip(eps, kw["rho_grain"], kw["rho_fluid"], kw["d"], kw["mu"], g,
+                        scene.options["drag"])
     rel = abs(slip - ref) / ref
     info = _info(scene, res, quick, eps_p=eps, window_s=[float(t[late][0]), float(t[-1])],
                  grain_velocity=float(-np.mean(v[late, 1])),

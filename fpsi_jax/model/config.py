@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ParameterError, fmt, number
-from .options import (BondSection, BoundaryPressure, FpiPressure, FsiMethod, KernelKind,
+from .options import (BondSection, BoundaryPressure, Drag, FpiPressure, FsiMethod, KernelKind,
                       Voidage, choose)
 from .scene import Scene
 
@@ -150,6 +150,8 @@ class Physics:
                            drag closure sees the 3D one either way (fpi.py)
       eps_floor            the fluid equations see max(ε, eps_floor) (the drag the true ε);
                            builders of packed beds raise it (cases/two_phase_dam_break.py)
+      drag                 the grains' drag: 'sphere' (W19–W23, default) or 'cylinder'
+                           (a disc as a cylinder per unit length); see fpi.py
       fpi_pressure         the grains' buoyancy: 'archimedes' (ρ_f V_p |g|, default) or
                            'gradient' (−V_p ∇P of the SPH pressure); see fpi.py
       lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)
@@ -189,6 +191,7 @@ class Physics:
     n_grain: int = 0
     voidage: Voidage = Voidage.AREA
     fpi_pressure: FpiPressure = FpiPressure.ARCHIMEDES
+    drag: Drag = Drag.SPHERE
     eps_floor: float = 0.0
     lubrication: bool = True
     domain_lo: tuple | None = None
@@ -200,11 +203,11 @@ class Physics:
                "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
                "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section",
                "dem_skin", "fsi", "dem_substeps", "fpi", "voidage", "lubrication",
-               "fpi_pressure", "eps_floor")
+               "fpi_pressure", "eps_floor", "drag")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,
-               "fpi_pressure": FpiPressure}
+               "fpi_pressure": FpiPressure, "drag": Drag}
 
     def __post_init__(self):
         # a Physics built by hand may name its choices by string: make them members, so the
@@ -315,7 +318,7 @@ class Physics:
         if self.has_fsi:
             m += [f"fsi.{self.fsi}"]
         if self.has_fpi:
-            m += ["fpi.voidage", "fpi.drag", f"fpi.buoyancy.{self.fpi_pressure}",
+            m += ["fpi.voidage", f"fpi.drag.{self.drag}", f"fpi.buoyancy.{self.fpi_pressure}",
                   "fpi.reaction"]
             m += ["fpi.lubrication"] if self.lubrication else []
         return tuple(m)

@@ -51,6 +51,12 @@ class Voidage(Choice):
     MAPPED = "mapped"        # the equivalent 3D packing's voidage
 
 
+class Drag(Choice):
+    """The grains' drag closure (physics/fpi.py)."""
+    SPHERE = "sphere"        # W19–W23: Ergun / Wen–Yu with Schiller–Naumann (a sphere's)
+    CYLINDER = "cylinder"    # a disc as a cylinder per unit length (Sucker & Brauer 1975)
+
+
 class FpiPressure(Choice):
     """The grains' buoyancy (physics/fpi.py)."""
     ARCHIMEDES = "archimedes"    # ρ_f V_p |g|

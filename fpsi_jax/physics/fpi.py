@@ -28,9 +28,16 @@ Choices the seeds leave open (docs/physics.md, docs/design.md):
   1 − ε_p of its weight). 'gradient' uses −V_p ∇P of the SPH pressure
   (:func:`pressure_force`), which adds the dynamic pressure of the flow. Either way the
   reaction goes to the fluid with the drag, by kernel weights (W47–W48).
-* V_p is the disc's area πR² per unit thickness, the same as the disc's mass ρ_p πR². The
-  force per unit mass, and with it the terminal velocity, is then exactly that of a sphere
-  of diameter d under the same drag law.
+* V_p is the disc's area πR² per unit thickness, the same as the disc's mass ρ_p πR². Under
+  the seed's law (Physics.drag = 'sphere') the force per unit mass, and with it the terminal
+  velocity, is then exactly that of a sphere of diameter d.
+* Drag of a disc (Physics.drag = 'cylinder'). A disc in 2D is a cylinder per unit length:
+  its drag is ½ρ_f s² d C_D,cyl(Re) per unit length, C_D,cyl the cylinder's (Sucker &
+  Brauer 1975, :func:`cylinder_drag_coefficient`), which is F/V_p = (2/π) C_D ρ_f s²/d per
+  unit grain volume against the sphere's ¾ C_D,sph ρ_f s²/d. Above ε = 0.8 it takes
+  Wen–Yu's form with the cylinder's coefficient, β = (2/π) C_D,cyl ε(1−ε) ρ_f s ε^(−2.65)/d
+  (the same voidage function), so that β/(1−ε) s V_p → ½ρ_f s² d C_D,cyl as ε → 1; a
+  packed bed (ε ≤ 0.8) keeps Ergun's permeability, as for spheres.
 """
 from __future__ import annotations
 
@@ -38,7 +45,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from ..model.options import Voidage
+from ..model.options import Drag, Voidage
 from .pairs import gather, safe_sqrt
 
 ERGUN_LIMIT = 0.8        # W20: Ergun for ε ≤ 0.8, Wen–Yu above
@@ -91,22 +98,38 @@ def drag_coefficient(re):
     return jnp.where(re <= RE_NEWTON, 24.0 / safe * (1.0 + 0.15 * safe ** 0.687), 0.44)
 
 
-def interphase_beta(eps, slip, rho_f, d, mu):
+def cylinder_drag_coefficient(re):
+    """C_D of a circular cylinder in cross-flow per unit length, Sucker & Brauer (1975,
+    Wärme- und Stoffübertragung 8:149), 10⁻⁴ < Re < 2·10⁵:
+    C_D = 1.18 + 6.8 Re^(−0.89) + 1.96 Re^(−½) − 4·10⁻⁴ Re/(1 + 3.64·10⁻⁷ Re²)
+    (2.08 at Re = 20 against 2.05 of Dennis & Chang's 1970 steady solution)."""
+    safe = jnp.maximum(re, 1e-12)
+    return (1.18 + 6.8 * safe ** -0.89 + 1.96 * safe ** -0.5
+            - 4e-4 * safe / (1.0 + 3.64e-7 * safe * safe))
+
+
+def interphase_beta(eps, slip, rho_f, d, mu, law=Drag.SPHERE):
     """Momentum-exchange coefficient β (W20): Ergun for ε ≤ 0.8,
     150(1−ε)²μ/(εd²) + 1.75(1−ε)ρ_f|ū−v|/d; Wen & Yu above,
-    ¾ C_d ε(1−ε) ρ_f |ū−v| ε^(−2.65)/d (W20 prints 7.5; the published coefficient is 3/4)."""
+    ¾ C_d ε(1−ε) ρ_f |ū−v| ε^(−2.65)/d (W20 prints 7.5; the published coefficient is 3/4).
+    ``law`` 'cylinder': above ε = 0.8, (2/π) C_D,cyl ε(1−ε) ρ_f |ū−v| ε^(−2.65)/d with
+    :func:`cylinder_drag_coefficient` (module docstring)."""
     ergun = 150.0 * (1 - eps) ** 2 * mu / (eps * d * d) + 1.75 * (1 - eps) * rho_f * slip / d
-    cd = drag_coefficient(reynolds(slip, eps, rho_f, d, mu))
-    wen_yu = 0.75 * cd * eps * (1 - eps) * rho_f * slip * eps ** (-2.65) / d
+    re = reynolds(slip, eps, rho_f, d, mu)
+    if law == Drag.CYLINDER:
+        coef = 2.0 / jnp.pi * cylinder_drag_coefficient(re)
+    else:
+        coef = 0.75 * drag_coefficient(re)
+    wen_yu = coef * eps * (1 - eps) * rho_f * slip * eps ** (-2.65) / d
     return jnp.where(eps <= ERGUN_LIMIT, ergun, wen_yu)
 
 
-def drag_force(eps, u_f, v_p, vol_p, rho_f, d, mu):
+def drag_force(eps, u_f, v_p, vol_p, rho_f, d, mu, law=Drag.SPHERE):
     """F_d = β/(1 − ε) (ū_f − v_p) V_p (W19) on each grain; ``u_f`` the Shepard fluid
     velocity at the grain, ``eps`` its voidage (< 1)."""
     rel = u_f - v_p
     slip = _norm(rel)
-    beta = interphase_beta(eps, slip, rho_f, d, mu)
+    beta = interphase_beta(eps, slip, rho_f, d, mu, law)
     return (beta / (1.0 - eps) * vol_p)[:, None] * rel
 
 
@@ -192,7 +215,8 @@ def pressure_force(rows: GrainRows, p_f, vol_p):
     return -vol_p[:, None] * pressure_gradient(rows, p_f)
 
 
-def grain_drag(rows: GrainRows, eps_f, v_f, v_p, vol_p, d_p, rho_f, mu, voidage_mode=Voidage.AREA):
+def grain_drag(rows: GrainRows, eps_f, v_f, v_p, vol_p, d_p, rho_f, mu, voidage_mode=Voidage.AREA,
+               law=Drag.SPHERE):
     """Grain voidage ε_p (W18), fluid velocity ū_f (W21), wetness Σ V_f W and the drag on
     each grain (W19–W23). ε_p is the Shepard average of the fluid's voidage, mapped to 3D
     for the closure when the fluid's is the area voidage (``voidage_mode`` 'area'). A grain
@@ -204,7 +228,7 @@ def grain_drag(rows: GrainRows, eps_f, v_f, v_p, vol_p, d_p, rho_f, mu, voidage_
     if voidage_mode == Voidage.AREA:
         eps_p = voidage_3d(eps_p)
     eps_p = jnp.where(is_wet, jnp.clip(eps_p, EPS_MIN, 1.0 - 1e-9), 1.0 - 1e-9)
-    drag = drag_force(eps_p, u_f, v_p, vol_p, rho_f, d_p, mu)
+    drag = drag_force(eps_p, u_f, v_p, vol_p, rho_f, d_p, mu, law)
     return eps_p, u_f, wet, jnp.where(is_wet[:, None], drag, 0.0)
 
 

@@ -480,6 +480,7 @@ def compose(spec: dict, path: str) -> SceneFile:
             if not has_grains:
                 fail(path, "physics", "key 'fpi' = true: the scene has no grains")
             options.update(fpi=True, voidage=ph["voidage"], eps_floor=ph["eps_floor"],
+                           drag=ph["drag"],
                            lubrication=ph["lubrication"], fpi_pressure=ph["fpi_pressure"])
             fpi_tbl = spec.get("fpi") or _defaults("fpi")
             fpi = FpiParams(lub_gap_min=fpi_tbl["lub_gap_min"], lub_cutoff=fpi_tbl["lub_cutoff"])

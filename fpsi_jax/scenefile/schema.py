@@ -240,6 +240,8 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
       Key("fpi", "bool", "", None, "grains feel the fluid (default: grains and fluid both "
           "present)"),
       Key("voidage", "str", "", "area", "voidage model", choices=("area", "mapped")),
+      Key("drag", "str", "", "sphere", "grain drag closure: the seed's sphere law (W19–W23) "
+          "or a disc as a cylinder per unit length", choices=("sphere", "cylinder")),
       Key("eps_floor", "float", "", 0.0, "lower bound of the fluid voidage", lo=0.0,
           hi=1.0, hi_open=True),
       Key("bond_section", "str", "", "slab", "bond cross-section",

@@ -411,7 +411,8 @@ def grain_forces(phys: Physics, params: Params, state: State, fam: SphFamily,
     kern, rows = kernels.get(phys.kernel), lvl.rows
     with jax.named_scope("fpi.drag"):
         eps_p, u_f, wet, drag = fpi.grain_drag(rows, lvl.eps_raw, f.v, fam.v_p, fam.vol_p,
-                                               2.0 * fam.r_p, sp.rho0, sp.mu, phys.voidage)
+                                               2.0 * fam.r_p, sp.rho0, sp.mu, phys.voidage,
+                                               phys.drag)
     with jax.named_scope("fpi.buoyancy"):
         if phys.fpi_pressure is FpiPressure.ARCHIMEDES:
             lift = -(sp.rho0 * fam.vol_p)[:, None] * g[None, :]

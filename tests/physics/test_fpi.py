@@ -43,6 +43,33 @@ def test_drag_force_is_along_the_slip_with_W19_magnitude():
     np.testing.assert_allclose(f, beta / 0.05 * float(vol[0]) * rel, rtol=1e-12)
 
 
+def test_cylinder_drag_coefficient_sucker_brauer():
+    """Hand values of 1.18 + 6.8 Re^−0.89 + 1.96 Re^−½ − 4e-4 Re/(1 + 3.64e-7 Re²):
+    Re = 20 → 2.0830 (Dennis & Chang's steady solution: 2.045), Re = 1 → 9.9396."""
+    cd = np.asarray(fpi.cylinder_drag_coefficient(jnp.asarray([1.0, 20.0])))
+    want = [1.18 + 6.8 + 1.96 - 4e-4 / (1 + 3.64e-7),
+            1.18 + 6.8 * 20 ** -0.89 + 1.96 * 20 ** -0.5 - 4e-4 * 20 / (1 + 3.64e-7 * 400)]
+    np.testing.assert_allclose(cd, want, rtol=1e-12)
+    assert cd[1] == pytest.approx(2.0830, abs=1e-4)
+
+
+def test_cylinder_drag_of_an_isolated_disc_is_half_rho_s2_d_cd_per_length():
+    """ε → 1: F = ½ρ s² d C_D per unit length (a cylinder), not the sphere's ¾ C_D ρ s²/d
+    per volume; below ε = 0.8 both laws are Ergun."""
+    from fpsi_jax.model.options import Drag
+    s, eps = 0.06, 1.0 - 1e-9
+    vol = jnp.asarray([np.pi * (D / 2) ** 2])
+    f = np.asarray(fpi.drag_force(jnp.asarray([eps]), jnp.asarray([[0.0, s]]),
+                                  jnp.zeros((1, 2)), vol, RHO, D, MU, Drag.CYLINDER))[0]
+    re = s * RHO * D / MU                                   # 150
+    cd = float(fpi.cylinder_drag_coefficient(re))
+    assert f[1] == pytest.approx(0.5 * RHO * s * s * D * cd, rel=1e-6)
+    assert f[0] == 0.0
+    for e in (0.5, 0.8):
+        assert float(fpi.interphase_beta(e, s, RHO, D, MU, Drag.CYLINDER)) == \
+            float(fpi.interphase_beta(e, s, RHO, D, MU))
+
+
 def test_pressure_gradient_is_exact_for_a_linear_field_even_with_a_cut_kernel():
     kern = kernels.get("wendland")
     h, dx = 0.003, 0.0015
@@ -171,4 +198,19 @@ def test_drag_gradient_wrt_viscosity_matches_finite_differences():
     g = float(jax.grad(total)(MU))
     e = 1e-8
     fd = (float(total(MU + e)) - float(total(MU - e))) / (2 * e)
+    np.testing.assert_allclose(g, fd, rtol=1e-6)
+
+
+def test_cylinder_drag_gradient_wrt_viscosity_matches_finite_differences():
+    from fpsi_jax.model.options import Drag
+    eps = jnp.asarray([0.85, 0.95])
+    u = jnp.asarray([[0.1, 0.0], [0.0, 0.05]])
+    vol = jnp.full(2, 5e-6)
+
+    def total(mu):
+        return jnp.sum(fpi.drag_force(eps, u, jnp.zeros((2, 2)), vol, RHO, D, mu,
+                                      Drag.CYLINDER))
+
+    g = float(jax.grad(total)(MU))
+    fd = (float(total(MU + 1e-8)) - float(total(MU - 1e-8))) / 2e-8
     np.testing.assert_allclose(g, fd, rtol=1e-6)
