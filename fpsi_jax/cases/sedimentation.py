@@ -150,6 +150,10 @@ def neutral_buoyancy_case(quick: bool = False, overrides: dict | None = None):
                    wall, info)]
 
 
+def phys_drag(scene):
+    return scene.options.get("drag", "sphere")
+
+
 def sedimentation_metrics(t, y, ref, y0):
     """RMS of y − y_ref over the reference times (relative to the fall y0 − y_ref,end) and
     the settling velocity (slope of a straight-line fit for 0.2 ≤ t ≤ 0.6 s) of ours and
@@ -175,12 +179,12 @@ def sedimentation_case(quick: bool = False, overrides: dict | None = None):
     ref = load_csv(SEDIMENTATION_REFERENCE)
     ref = ref[np.argsort(ref[:, 0])]
     rms, v_ours, v_ref = sedimentation_metrics(t, x[:, 1], ref, scene.builder_kwargs["y0"])
-    info = _info(scene, res, quick, eps_p_mean=float(np.mean(e)),
+    info = _info(scene, res, quick, eps_p_mean=float(np.mean(e)), drag=str(phys_drag(scene)),
                  fluid_spacing_over_d=scene.params.sph.dp / scene.builder_kwargs["d"])
-    out = [Record("sedimentation", "RMS(y - y_ref) / fall height", rms, 0.0, rms, 0.1,
-                  rms < 0.1, wall, info)]
+    out = [Record("sedimentation", "RMS(y - y_ref) / fall height", rms, 0.0, rms, 0.03,
+                  rms < 0.03, wall, info)]
     if not quick:
         rel = abs(v_ours - v_ref) / v_ref
         out.append(Record("sedimentation", "settling velocity 0.2-0.6 s [m/s]", v_ours, v_ref,
-                          rel, 0.1, rel < 0.1, wall, info))
+                          rel, 0.05, rel < 0.05, wall, info))
     return out
