@@ -22,6 +22,7 @@ from .bond_tension import bond_tension
 from .hydrostatic_plate import hydrostatic_plate
 from .elastic_gate import elastic_gate, gate_failure
 from .sedimentation import sedimentation
+from .grain_bed import grain_bed
 from .two_phase_dam_break import two_phase_dam_break
 from .fpsi_failure import fpsi_failure
 from .registry import (CASES, DESCRIPTIONS, OBSERVERS, PLOTS, SCENE_OF, SCENES, build,
@@ -31,4 +32,4 @@ __all__ = ["SCENES", "CASES", "DESCRIPTIONS", "SCENE_OF", "OBSERVERS", "PLOTS", 
            "builder_keys", "get", "hydrostatic_tank", "dam_break", "collision", "rolling",
            "dry_dam_break", "wall_impact", "itasca_beam", "cantilever", "bond_tension",
            "hydrostatic_plate", "elastic_gate", "gate_failure", "sedimentation",
-           "two_phase_dam_break", "fpsi_failure"]
+           "grain_bed", "two_phase_dam_break", "fpsi_failure"]

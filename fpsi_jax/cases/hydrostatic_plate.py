@@ -8,8 +8,8 @@ import time
 import numpy as np
 
 from ..build import (G, boundary_block, boundary_layers, check_positive, dam_speed, disc_block,
-                     domain, hydrostatic_fluid, lattice, packing, sound_speed, sph_params,
-                     touching_pairs)
+                     domain, hydrostatic_fluid, lattice, packing, sound_speed, span_spacing,
+                     sph_params, touching_pairs)
 from ..model.params import DemParams, Params
 from ..model.scene import Scene
 from ..run import observers
@@ -66,13 +66,14 @@ def hydrostatic_plate(*, span=0.07875, thickness=0.005, water_height=0.1575005, 
     water (ρ_p 1100, ν 0.4, E 10 MPa). Reference: :func:`plate_deflection`, 1.2915 mm (K
     quotes 1.2895 mm with the rounded coefficient 0.0026).
 
-    As built: the clamps are the disc columns at x ≤ 0 and x ≥ L with L = round(span/d)·d
-    (the last clamped centres are exactly L apart: a bonded strip bends from the last fixed
-    disc centre), the water fills [0, L] between two walls of SPH boundary particles, on a
-    dx lattice of floor(L/dx) × round(H/dx) particles. ``builder_kwargs`` records the as-built
-    span and the water height that carries the same mass (``span_built``,
-    ``water_height_built``); the reference uses them. At the seed's resolution (dx 1.75 mm,
-    d 1.25 mm) both equal the nominal values.
+    As built: the clamps are the disc columns at x ≤ 0 and x ≥ L with L = ``span`` (the last
+    clamped centres are exactly L apart: a bonded strip bends from the last fixed disc
+    centre); where span/d is no whole number the columns are L/⌊L/d⌋ apart (a stretched
+    strip, physics.md §Parallel bonds). The water fills [0, L] between two walls of SPH
+    boundary particles, on a dx lattice of floor(L/dx) × round(H/dx) particles.
+    ``builder_kwargs`` records the span and the water height that carries the same mass
+    (``span_built``, ``water_height_built``); the reference uses them. At the seed's
+    resolution (dx 1.75 mm, d 1.25 mm) both equal the nominal values.
 
     The plate starts straight and the water hydrostatic; local damping ``alpha`` (DEM K25)
     settles the plate (by 0.25 s at the seed resolution); the midpoint deflection is read
@@ -92,19 +93,28 @@ def hydrostatic_plate(*, span=0.07875, thickness=0.005, water_height=0.1575005, 
                    dx_boundary=dx_boundary)
     check_coupling(coupling)
     h = 1.25 * dx if h0 is None else h0
-    n_span = rows(span, d, "span")
     n_rows = rows(thickness, d, "thickness")
-    L = n_span * d
-    # plate: columns at k d, k = −(c−1) … n_span + c − 1, rows below y = 0
-    p0x, p0y, p1x, p1y = plate_box(L, n_rows, d, clamp_columns)
-    xs = packing(p0x, p0y, p1x - p0x, p1y - p0y, d, "square")
+    s = span_spacing(span, d)
     tol = 1e-9 * d
+    if abs(s - d) <= tol:
+        # span a whole number of d: columns at k d, k = −(c−1) … n + c − 1, rows below y = 0
+        L = rows(span, d, "span") * d
+        p0x, p0y, p1x, p1y = plate_box(L, n_rows, d, clamp_columns)
+        xs = packing(p0x, p0y, p1x - p0x, p1y - p0y, d, "square")
+    else:
+        # a stretched strip: columns s = L/⌊L/d⌋ apart from x = 0 to x = L, plus the clamps
+        L = span
+        xs = packing(0.0, -n_rows * d, L, n_rows * d, d, "square", stretch=True)
+        ends = [xs[np.abs(xs[:, 0] - e) <= tol] for e in (0.0, L)]
+        xs = np.concatenate([xs] + [c + [sign * k * s, 0.0] for c, sign in zip(ends, (-1, 1))
+                                    for k in range(1, clamp_columns)])
     fixed = (xs[:, 0] <= tol) | (xs[:, 0] >= L - tol)
-    k, bp = bond_params(E, nu, d, plane_strain, shear_factor=shear_factor)
+    k, bp = bond_params(E, nu, d, plane_strain, shear_factor=shear_factor,
+                        touching=abs(s - d) <= tol)
     blk = disc_block(xs, d / 2, rho_plate, mass_model="lattice", packing="square",
-                     fixed=fixed)
-    blk.sph_volume = np.full(blk.n, d * d)
-    bonds = touching_pairs(xs, d / 2)
+                     fixed=fixed, column_spacing=None if abs(s - d) <= tol else s)
+    blk.sph_volume = np.full(blk.n, d * (d if abs(s - d) <= tol else s))
+    bonds = touching_pairs(xs, d / 2, gap=max(s - d, 0.0))
     # water between the walls
     nx = max(1, int(math.floor(L / dx + 1e-9)))
     ny = rows(water_height, dx, "water_height")
@@ -121,7 +131,7 @@ def hydrostatic_plate(*, span=0.07875, thickness=0.005, water_height=0.1575005, 
     wall = lattice(0.0, 0.0, t, top, dx_boundary)
     xb = np.concatenate([wall - [t, 0.0], wall + [L, 0.0]])
     boundary = boundary_block(xb, rho_water, dx_boundary, h)
-    lo, hi = domain((0.0, -thickness), (L, top), t + clamp_columns * d + 2 * h)
+    lo, hi = domain((0.0, -thickness), (L, top), t + clamp_columns * max(s, d) + 2 * h)
     return Scene(
         name="hydrostatic_plate",
         params=Params(sph=sp, dem=DemParams(kn=k["kn"], ks=k["ks"], mu=0.0, alpha=alpha,

@@ -20,12 +20,14 @@ def check_coupling(coupling):
     choose(FsiMethod, "coupling", coupling)
 
 
-def bond_params(E, nu, d, plane_strain, sigma_c=1.0e30, tau_c=1.0e30, shear_factor=1.0):
+def bond_params(E, nu, d, plane_strain, sigma_c=1.0e30, tau_c=1.0e30, shear_factor=1.0,
+                touching=True):
     """K42–K43 stiffnesses with W's 1 % contact split (the cantilever's default mapping);
-    the shear springs (k̄_s, k_s) scaled by ``shear_factor``. Returns (the mapping's dict,
-    BondParams)."""
+    the shear springs (k̄_s, k_s) scaled by ``shear_factor``; ``touching=False`` for a
+    stretched strip (k42_mapping). Returns (the mapping's dict, BondParams)."""
     check_positive(shear_factor=shear_factor)
-    k = k42_mapping(E, nu, d / 2, contact_fraction=0.01, plane_strain=plane_strain)
+    k = k42_mapping(E, nu, d / 2, contact_fraction=0.01, plane_strain=plane_strain,
+                    touching=touching)
     k = {**k, "bond_ks": k["bond_ks"] * shear_factor, "ks": k["ks"] * shear_factor}
     return k, BondParams(kn=k["bond_kn"], ks=k["bond_ks"], sigma_c=sigma_c, tau_c=tau_c)
 
