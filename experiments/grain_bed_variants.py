@@ -1,9 +1,10 @@
 """The packed grain bed under still water (the `grain_bed` scene, 4 hexagonal layers) with
-each voidage model and floor: how long it stays at rest, or how far from rest it is.
+each voidage model, floor and grain pressure force ('archimedes', 'shared'): how long it
+stays at rest, or how far from rest it is.
 
     .venv/bin/python experiments/grain_bed_variants.py [--t-end 0.2]
 
-writes experiments/results/grain_bed_variants.csv (about 3 min on 2 cores)
+writes experiments/results/grain_bed_variants.csv (about 5 min on 2 cores)
 """
 from __future__ import annotations
 
@@ -20,7 +21,9 @@ from fpsi_jax.cases.grain_bed import bed_observer
 from fpsi_jax.model.errors import SimulationError
 from fpsi_jax.run.driver import simulate
 
-VARIANTS = [("area", 0.0), ("mapped", 0.0), ("area", 0.5), ("mapped", 0.5), ("mapped", 0.8)]
+VARIANTS = [(v, f, pres) for pres in ("archimedes", "shared")
+            for v, f in (("area", 0.0), ("mapped", 0.0), ("area", 0.5), ("mapped", 0.5),
+                         ("mapped", 0.8))]
 
 
 def main():
@@ -29,11 +32,12 @@ def main():
     ap.add_argument("--out", default="experiments/results/grain_bed_variants.csv")
     a = ap.parse_args()
     rows = []
-    for voidage, floor in VARIANTS:
-        scene = cases.build("grain_bed", voidage=voidage, eps_floor=floor, t_end=a.t_end)
+    for voidage, floor, pressure in VARIANTS:
+        scene = cases.build("grain_bed", voidage=voidage, eps_floor=floor, t_end=a.t_end,
+                            fpi_pressure=pressure)
         scale = math.sqrt(9.81 * scene.builder_kwargs["water_height"])
         t0 = time.perf_counter()
-        row = dict(voidage=voidage, eps_floor=floor, t_end=a.t_end)
+        row = dict(voidage=voidage, eps_floor=floor, fpi_pressure=pressure, t_end=a.t_end)
         try:
             res = simulate(scene, progress=False, observe=bed_observer)
             vf, vs, _ = (np.asarray(o, float) for o in res.observations)

@@ -152,8 +152,10 @@ class Physics:
                            builders of packed beds raise it (cases/two_phase_dam_break.py)
       drag                 the grains' drag: 'sphere' (W19–W23, default) or 'cylinder'
                            (a disc as a cylinder per unit length); see fpi.py
-      fpi_pressure         the grains' buoyancy: 'archimedes' (ρ_f V_p |g|, default) or
-                           'gradient' (−V_p ∇P of the SPH pressure); see fpi.py
+      fpi_pressure         the grains' buoyancy: 'archimedes' (ρ_f V_p |g|, default),
+                           'gradient' (−V_p ∇P of the SPH pressure) or 'shared' (each fluid
+                           cell's pressure force, ε to its fluid, 1 − ε to its grains);
+                           see fpi.py
       lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)
 
     The domain (health checks) and its open sides:

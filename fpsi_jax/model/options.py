@@ -61,6 +61,7 @@ class FpiPressure(Choice):
     """The grains' buoyancy (physics/fpi.py)."""
     ARCHIMEDES = "archimedes"    # ρ_f V_p |g|
     GRADIENT = "gradient"        # −V_p ∇P of the SPH pressure
+    SHARED = "shared"            # a cell's pressure force: ε to its fluid, 1 − ε to its grains
 
 
 class Side(Choice):

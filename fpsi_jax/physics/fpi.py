@@ -28,6 +28,15 @@ Choices the seeds leave open (docs/physics.md, docs/design.md):
   1 − ε_p of its weight). 'gradient' uses −V_p ∇P of the SPH pressure
   (:func:`pressure_force`), which adds the dynamic pressure of the flow. Either way the
   reaction goes to the fluid with the drag, by kernel weights (W47–W48).
+* Shared pressure (Physics.fpi_pressure = 'shared'). The SPH pressure force on fluid
+  particle f is the force on its whole cell V_f = m_f/(ε_f ρ_f), fluid and grains; with
+  'archimedes' and 'gradient' the fluid particle (mass ε_f ρ_f V_f) takes all of it and the
+  grains' buoyancy comes back to it as a reaction, so any error in it is amplified 1/ε_f in
+  acceleration (ten times in a packed 2D bed). 'shared' gives the fluid ε_f of it (its
+  acceleration is then −∇P/ρ, the fluid phase's) and the grains in its support the rest,
+  split by their part of its solid fraction (:func:`cell_share_on_grains`); only the drag
+  goes back to the fluid by kernel weights. The pressure force is shared, not created:
+  momentum is conserved to round-off.
 * V_p is the disc's area πR² per unit thickness, the same as the disc's mass ρ_p πR². Under
   the seed's law (Physics.drag = 'sphere') the force per unit mass, and with it the terminal
   velocity, is then exactly that of a sphere of diameter d.
@@ -74,6 +83,21 @@ def fluid_voidage(w, vol_p, idx, valid, n_fluid, mode=Voidage.AREA):
     solid = jnp.zeros(n_fluid + 1, w.dtype).at[target.reshape(-1)].add(share.reshape(-1))
     eps = jnp.clip(1.0 - solid[:n_fluid], EPS_MIN, 1.0)
     return voidage_3d(eps) if mode == Voidage.MAPPED else eps
+
+
+def cell_share_on_grains(rows, force_f, vol_p, n_fluid):
+    """The grains' part of their fluid particles' cell forces (the 'shared' pressure:
+    (1 − ε_f) of the pressure force on fluid particle f's cell, ``force_f`` (n_f, 2)), split
+    among the grains in f's support by their part of its solid fraction,
+    V_p W_pf / Σ_p V_p W_pf. Every fluid particle with ε < 1 has a grain in its support
+    (its solid fraction is that sum), so Σ over the grains equals Σ_f force_f to round-off:
+    the cell's pressure force is shared, not created. Returns (n_g, 2)."""
+    share = jnp.where(rows.valid, rows.w * vol_p[:, None], 0.0)
+    target = jnp.where(rows.valid, rows.idx, n_fluid)
+    solid = jnp.zeros(n_fluid + 1, share.dtype).at[target.reshape(-1)].add(
+        share.reshape(-1))
+    frac = share / jnp.where(solid > 0, solid, 1.0)[target]
+    return jnp.sum(frac[..., None] * gather(force_f, rows.idx, 0.0), axis=1)
 
 
 def shepard(values, w, vol, valid):

@@ -136,10 +136,14 @@ def density_rate(phys, sp, rho_i, pr: Pairs, eps=None, rho_intrinsic=None):
 
 
 def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, eps=None,
-                  structure_bracket=None):
+                  structure_bracket=None, shared=False):
     """dv/dt (pressure with anti-clump, Morris viscosity, gravity; W43, K34–K38; the wall
     backstop :func:`wall_repulsion_scalar` when switched on) and the
-    XSPH correction of the fluid rows. ``rho``/``p`` cover all particles (fluid, boundary,
+    XSPH correction of the fluid rows. ``shared`` (with ``eps``): the pressure force of
+    fluid particle i's cell (pressure and anti-clump pair terms, as if the cell were all
+    fluid) is shared, ε_i to the fluid particle and 1 − ε_i to the grains in it; the grains'
+    part per unit fluid mass is returned as a fourth output (fpi.py, 'shared' pressure).
+    ``rho``/``p`` cover all particles (fluid, boundary,
     structure) at the new time level. With grains, ``eps`` is the voidage of every particle
     (1 off the fluid) and the pressure bracket is :func:`voidage_bracket`; the anti-clump
     term (W45) uses ερ too, the viscosity (W44) and XSPH keep ρ. ``structure_bracket(coef, p_i, ρ_i, ρ_j, idx)``, when given,
@@ -172,6 +176,16 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
         # every pair term is a scalar times x_ij or v_ij: the four sums are then one
         # variadic reduction over scalars (docs/performance.md)
         s_dx = pressure_scalar(pr.m_j, coef, pr.f)
+    solid_share = None
+    if shared:
+        with jax.named_scope("fpi.shared_pressure"):
+            # the cell's pressure force per unit fluid mass is s_dx summed; the fluid keeps
+            # ε_i of it, the grains get the rest
+            keep = eps[:rows]
+            solid_share = jnp.stack(sum_neighbours(s_dx * pr.dx[..., 0],
+                                                   s_dx * pr.dx[..., 1]), axis=1)
+            solid_share = (1.0 - keep)[:, None] * solid_share
+            s_dx = keep[:, None] * s_dx
     with jax.named_scope("sph.viscosity"):
         s_v = viscous_scalar(sp.mu, sp.mu, rho_i, rho_j, pr)
     if phys.artificial_viscosity:
@@ -196,4 +210,6 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
         acc = jnp.stack(sum_neighbours(ax_, ay_), axis=1) + gravity
         xs = jnp.zeros_like(acc)
     pair = jnp.stack([ax_, ay_], axis=-1) if with_pairs else None
+    if shared:
+        return acc, xs, pair, solid_share
     return acc, xs, pair

@@ -253,7 +253,7 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
       Key("variable_h", "bool", "", True, "variable smoothing length"),
       Key("lubrication", "bool", "", True, "lubrication between grains in fluid (W24)"),
       Key("fpi_pressure", "str", "", "archimedes", "pressure force on grains",
-          choices=("archimedes", "gradient")),
+          choices=("archimedes", "gradient", "shared")),
       Key("rho_tolerance", "float", "", 0.3, "stop when |ρ/ρ0 − 1| exceeds this", lo=0.0,
           lo_open=True))
 

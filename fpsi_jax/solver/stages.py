@@ -378,7 +378,7 @@ def wall_pressure(phys: Physics, params: Params, state: State, fam: SphFamily,
 
 
 def fluid_momentum(phys: Physics, params: Params, state: State, pr: Pairs,
-                   lvl: NewLevel) -> State:
+                   lvl: NewLevel):
     """The fluid's acceleration and XSPH correction (sph.momentum_rate: W43, K34–K39) at the
     new level, and the reaction of the fluid–structure pairs on the structure (fsi.py)."""
     fs, b, first = state.fsi, state.boundary, phys.n_fluid + phys.n_boundary
@@ -391,19 +391,22 @@ def fluid_momentum(phys: Physics, params: Params, state: State, pr: Pairs,
     if lvl.eps is not None:
         eps_all = _cat(lvl.eps, None if b is None else jnp.ones_like(b.rho),
                        None if fs is None else jnp.ones_like(fs.rho))
-    acc, xs, pair = sph.momentum_rate(
+    shared = lvl.eps is not None and phys.fpi_pressure is FpiPressure.SHARED
+    out = sph.momentum_rate(
         phys, kernels.get(phys.kernel), params.sph, jnp.asarray(params.gravity),
         _all(state, lvl.rho, "rho"), _all(state, lvl.p, "p"), pr, with_pairs=fs is not None,
-        eps=eps_all, structure_bracket=bracket)
+        eps=eps_all, structure_bracket=bracket, shared=shared)
+    acc, xs, pair = out[:3]
     if fs is not None:
         with jax.named_scope("fsi.reaction"):
             fs = fs.replace(force=fsi.reaction(pair, state.fluid.mass, pr.idx, first,
                                                phys.n_structure))
-    return state.replace(fluid=state.fluid.replace(acc=acc, xsph=xs), fsi=fs)
+    state = state.replace(fluid=state.fluid.replace(acc=acc, xsph=xs), fsi=fs)
+    return state, (out[3] if shared else None)
 
 
 def grain_forces(phys: Physics, params: Params, state: State, fam: SphFamily,
-                 lvl: NewLevel) -> State:
+                 lvl: NewLevel, solid_share=None) -> State:
     """The fluid's force on the grains, drag (W19–W23) and buoyancy (fpi.py), and its
     reaction on the fluid by kernel weights (W47–W48)."""
     sp, f, b, fp = params.sph, state.fluid, state.boundary, state.fpi
@@ -416,13 +419,19 @@ def grain_forces(phys: Physics, params: Params, state: State, fam: SphFamily,
     with jax.named_scope("fpi.buoyancy"):
         if phys.fpi_pressure is FpiPressure.ARCHIMEDES:
             lift = -(sp.rho0 * fam.vol_p)[:, None] * g[None, :]
-        else:
+        elif phys.fpi_pressure is FpiPressure.GRADIENT:
             lift = fpi.pressure_force(rows, lvl.p, fam.vol_p)
+        else:       # the grains' part of their cells' pressure force (fluid_momentum)
+            lift = fpi.cell_share_on_grains(rows, solid_share * f.mass[:, None], fam.vol_p,
+                                            phys.n_fluid)
         force = drag + jnp.where((wet > 0)[:, None], lift, 0.0)
     with jax.named_scope("fpi.reaction"):
         wall = None if b is None else fpi.wall_share(kern, b.x, b.h, b.mass / b.rho, fam.x_p,
                                                      fam.idx_g, phys.n_fluid)
-        acc = f.acc + fpi.reaction_acceleration(rows, force, f.mass, wall)
+        # with the shared pressure the buoyancy is the grains' own part of the cells'
+        # pressure force, not a force on the fluid: only the drag goes back
+        handed = drag if solid_share is not None else force
+        acc = f.acc + fpi.reaction_acceleration(rows, handed, f.mass, wall)
     return state.replace(fluid=f.replace(acc=acc),
                          fpi=fp.replace(eps=lvl.eps, eps_p=eps_p, u_f=u_f, wet=wet,
                                         force=force))
@@ -444,9 +453,9 @@ def evaluate_fluid(phys: Physics, params: Params, state: State, dt) -> State:
                _all(state, rho_c, "rho"), fam.idx[:phys.n_fluid])
     lvl = new_level(phys, params, state, fam, pr, dt)
     state = wall_pressure(phys, params, state, fam, lvl)
-    state = fluid_momentum(phys, params, state, pr, lvl)
+    state, solid_share = fluid_momentum(phys, params, state, pr, lvl)
     if state.fpi is not None:
-        state = grain_forces(phys, params, state, fam, lvl)
+        state = grain_forces(phys, params, state, fam, lvl, solid_share)
     return state.replace(fluid=state.fluid.replace(rho=lvl.rho, h=lvl.h))
 
 

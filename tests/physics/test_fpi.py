@@ -214,3 +214,16 @@ def test_cylinder_drag_gradient_wrt_viscosity_matches_finite_differences():
     g = float(jax.grad(total)(MU))
     fd = (float(total(MU + 1e-8)) - float(total(MU - 1e-8))) / 2e-8
     np.testing.assert_allclose(g, fd, rtol=1e-6)
+
+
+def test_cell_share_goes_to_the_grains_by_their_part_of_the_solid_fraction():
+    """Fluid particle 0 is in the support of grains A (V_p W = 2·0.3) and B (1·0.2); fluid
+    particle 1 only in A's. Its cell force F_0 = (1, −2) splits 0.75 / 0.25, F_1 = (0, 4)
+    goes to A whole: A gets (0.75, 2.5), B (0.25, −0.5); the sums agree (Newton)."""
+    rows = fpi.GrainRows(idx=jnp.asarray([[0, 1], [0, 2]]), valid=jnp.asarray([[True, True],
+                                                                                [True, False]]),
+                         w=jnp.asarray([[0.3, 0.5], [0.2, 0.0]]), vol=None, dx=None, f=None)
+    force = jnp.asarray([[1.0, -2.0], [0.0, 4.0]])
+    out = np.asarray(fpi.cell_share_on_grains(rows, force, jnp.asarray([2.0, 1.0]), 2))
+    np.testing.assert_allclose(out, [[0.75, 2.5], [0.25, -0.5]], rtol=1e-12)
+    np.testing.assert_allclose(out.sum(0), np.asarray(force).sum(0), rtol=1e-12)

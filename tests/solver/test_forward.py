@@ -401,6 +401,26 @@ def test_grain_velocity_gradient_wrt_viscosity_matches_finite_differences():
     assert g == pytest.approx(fd, rel=1e-4)
 
 
+@x64
+def test_grain_velocity_gradient_with_shared_pressure_matches_finite_differences():
+    """The same through the 'shared' pressure (the cells' pressure force split between
+    fluid and grain), with respect to the sound speed c0, which the shared part carries."""
+    scene = grain_scene(rho_grain=2500.0)
+    phys, p, st = init_x64(scene, fpi_pressure="shared")
+
+    @jax.jit
+    def vy(c0):
+        end, _ = forward.rollout(phys, st, p.replace(sph=p.sph.replace(c0=c0)), 60)
+        return end.solid.v[0, 1]
+
+    c0 = p.sph.c0
+    g = float(jax.grad(vy)(c0))
+    h = 1e-4 * float(c0)
+    fd = (float(vy(c0 + h)) - float(vy(c0 - h))) / (2 * h)
+    assert g != 0.0
+    assert g == pytest.approx(fd, rel=1e-4)
+
+
 # --- the compiled step holds only what the scene has (float64) ---------------------------
 @x64
 def test_dem_only_scene_compiles_no_sph(step_hlo):
