@@ -41,11 +41,15 @@ def main():
         try:
             res = simulate(scene, progress=False, observe=bed_observer)
             vf, vs, _ = (np.asarray(o, float) for o in res.observations)
+            late = slice(int(0.75 * len(vf)), None)
             row.update(failed_at_s="", fluid_vmax_over_sqrt_gH=vf.max() / scale,
-                       grain_vmax_over_sqrt_gH=vs.max() / scale)
+                       grain_vmax_over_sqrt_gH=vs.max() / scale,
+                       fluid_vmax_last_quarter=vf[late].max() / scale,
+                       grain_vmax_last_quarter=vs[late].max() / scale)
         except SimulationError as e:
             row.update(failed_at_s=e.time, fluid_vmax_over_sqrt_gH="",
-                       grain_vmax_over_sqrt_gH="", quantity=e.quantity)
+                       grain_vmax_over_sqrt_gH="", fluid_vmax_last_quarter="",
+                       grain_vmax_last_quarter="", quantity=e.quantity)
         row["wall_s"] = time.perf_counter() - t0
         rows.append(row)
         print(row, flush=True)
