@@ -157,24 +157,24 @@ def grain_bed_at_rest_case(quick: bool = False, overrides: dict | None = None):
         scene, phys = ov.build("grain_bed", overrides or {}, base)
         kw = scene.builder_kwargs
         info = {**kw, "quick": quick, "n_particles": scene.n_particles}
-        name = f"grain_bed_at_rest ({packing})"
+        name = "grain_bed_at_rest"
         t0 = time.perf_counter()
         try:
             res = simulate(scene, progress=False, observe=bed_observer, **phys)
         except SimulationError as e:
             wall = time.perf_counter() - t0
             info.update(failed_at_s=e.time, particle=e.particle, quantity=e.quantity)
-            out.append(Record(name, "time the bed stays at rest [s]", float(e.time),
+            out.append(Record(name, f"{packing}: time the bed stays at rest [s]", float(e.time),
                               float(scene.t_end), 1.0 - float(e.time) / scene.t_end, 0.0,
                               False, wall, info))
             continue
         wall = time.perf_counter() - t0
         err_p, vf, vs, load = bed_metrics(scene, res)
         info.update(steps=res.n_steps, grain_speed=vs)
-        out += [Record(name, "pore pressure L1 error", err_p, 0.0, err_p, 0.02, err_p < 0.02,
-                       wall, info),
-                Record(name, "max |v| / sqrt(gH), last quarter", max(vf, vs), 0.0,
+        out += [Record(name, f"{packing}: pore pressure L1 error", err_p, 0.0, err_p, 0.02,
+                       err_p < 0.02, wall, info),
+                Record(name, f"{packing}: max |v| / sqrt(gH), last quarter", max(vf, vs), 0.0,
                        max(vf, vs), 0.01, max(vf, vs) < 0.01, wall, info),
-                Record(name, "load on the floor vs buoyant weight", load, 0.0, abs(load),
-                       0.02, abs(load) < 0.02, wall, info)]
+                Record(name, f"{packing}: load on the floor vs buoyant weight", load, 0.0,
+                       abs(load), 0.02, abs(load) < 0.02, wall, info)]
     return out
