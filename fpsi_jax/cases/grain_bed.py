@@ -86,6 +86,8 @@ def grain_bed(*, width=0.05, water_height=0.1, d=0.0024, layers=4, packing="hex"
     choose(Drag, "drag", drag)
     if packing not in PACKINGS:
         raise ParameterError(f"packing must be one of {PACKINGS}, got {packing!r}")
+    if isinstance(layers, bool) or int(layers) != layers or not 1 <= layers <= 100:
+        raise ParameterError(f"layers = {layers} out of range; allowed whole numbers [1, 100]")
     xg = hex_bed(width, d, int(layers))
     if packing == "random":
         xg = random_bed(width, d, xg.shape[0], seed)
