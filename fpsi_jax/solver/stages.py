@@ -380,7 +380,9 @@ def wall_pressure(phys: Physics, params: Params, state: State, fam: SphFamily,
 def fluid_momentum(phys: Physics, params: Params, state: State, pr: Pairs,
                    lvl: NewLevel):
     """The fluid's acceleration and XSPH correction (sph.momentum_rate: W43, K34–K39) at the
-    new level, and the reaction of the fluid–structure pairs on the structure (fsi.py)."""
+    new level, and the reaction of the fluid–structure pairs on the structure (fsi.py).
+    Returns (state, the grains' part of the cells' pressure force per unit fluid mass with
+    the 'shared' pressure, else None)."""
     fs, b, first = state.fsi, state.boundary, phys.n_fluid + phys.n_boundary
     bracket = None
     if fs is not None and phys.fsi is FsiMethod.PRESSURE_GRADIENT:
@@ -445,8 +447,9 @@ def evaluate_fluid(phys: Physics, params: Params, state: State, dt) -> State:
     With grains the conserved density is ερ (W42): continuity advances ε_old ρ, the voidage
     ε at the new positions turns it back into the intrinsic ρ that the EOS, the viscosity
     and the walls see, the pressure bracket carries ε (``sph.voidage_bracket``), and the
-    grains' drag and buoyancy go back to the fluid by kernel weights (W47–W48). Without
-    grains none of this is traced."""
+    grains' drag and buoyancy go back to the fluid by kernel weights (W47–W48); with the
+    'shared' pressure the fluid keeps ε of its cell's pressure force, the grains get the
+    rest, and only the drag goes back. Without grains none of this is traced."""
     fam = sph_family(phys, state)
     rho_c = state.fluid.rho if state.fpi is None else state.fpi.eps * state.fluid.rho
     pr = pairs(kernels.get(phys.kernel), phys.n_fluid, fam.x, fam.v, fam.h, fam.m,
