@@ -12,10 +12,10 @@ writes experiments/results/cantilever_span.csv
 from __future__ import annotations
 
 import argparse
-import csv
-import os
 
 from fpsi_jax.cases.cantilever import cantilever_case, cantilever_frequency_case
+
+from _table import write_rows
 
 
 def main():
@@ -39,11 +39,7 @@ def main():
         rows.append(row)
         print(", ".join(f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}"
                         for k, v in row.items()), flush=True)
-    os.makedirs(os.path.dirname(a.out), exist_ok=True)
-    with open(a.out, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_rows(a.out, rows)
 
 
 if __name__ == "__main__":

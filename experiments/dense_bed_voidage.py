@@ -11,8 +11,6 @@ shipped ones (experiments/two_phase_dam_break.py, fpsi_failure.py: 6–10 min ea
 from __future__ import annotations
 
 import argparse
-import csv
-import os
 import time
 
 import jax.numpy as jnp
@@ -21,6 +19,8 @@ import numpy as np
 from fpsi_jax import cases
 from fpsi_jax.model.errors import SimulationError
 from fpsi_jax.run.driver import simulate
+
+from _table import write_rows
 
 
 def observe(state):
@@ -60,11 +60,7 @@ def main():
                 print(row, flush=True)
     keys = ["scene", "eps_floor", "fpi_pressure", "reached_s", "failed", "fluid_front_m",
             "grain_front_m", "broken_bonds", "wall_s"]
-    os.makedirs(os.path.dirname(a.out), exist_ok=True)
-    with open(a.out, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=keys)
-        w.writeheader()
-        w.writerows(rows)
+    write_rows(a.out, rows, keys)
 
 
 if __name__ == "__main__":

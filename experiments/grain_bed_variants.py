@@ -9,9 +9,7 @@ writes experiments/results/grain_bed_variants.csv (about 5 min on 2 cores)
 from __future__ import annotations
 
 import argparse
-import csv
 import math
-import os
 import time
 
 import numpy as np
@@ -20,6 +18,8 @@ from fpsi_jax import cases
 from fpsi_jax.cases.grain_bed import bed_observer
 from fpsi_jax.model.errors import SimulationError
 from fpsi_jax.run.driver import simulate
+
+from _table import write_rows
 
 VARIANTS = [(v, f, pres) for pres in ("archimedes", "shared")
             for v, f in (("area", 0.0), ("mapped", 0.0), ("area", 0.5), ("mapped", 0.5),
@@ -53,13 +53,7 @@ def main():
         row["wall_s"] = time.perf_counter() - t0
         rows.append(row)
         print(row, flush=True)
-    keys = sorted({k for r in rows for k in r}, key=lambda k: list(rows[0]).index(k)
-                  if k in rows[0] else 99)
-    os.makedirs(os.path.dirname(a.out), exist_ok=True)
-    with open(a.out, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=keys)
-        w.writeheader()
-        w.writerows(rows)
+    write_rows(a.out, rows)
 
 
 if __name__ == "__main__":

@@ -10,10 +10,10 @@ writes experiments/results/sedimentation_drag.csv (about 4 min on 2 cores)
 from __future__ import annotations
 
 import argparse
-import csv
-import os
 
 from fpsi_jax.cases.sedimentation import sedimentation_case
+
+from _table import write_rows
 
 
 def main():
@@ -31,11 +31,7 @@ def main():
                        eps_p_mean=rms.params["eps_p_mean"], wall_s=rms.wall_s)
             rows.append(row)
             print(row, flush=True)
-    os.makedirs(os.path.dirname(a.out), exist_ok=True)
-    with open(a.out, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_rows(a.out, rows)
 
 
 if __name__ == "__main__":
