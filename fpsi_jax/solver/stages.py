@@ -401,8 +401,8 @@ def fluid_momentum(phys: Physics, params: Params, state: State, pr: Pairs,
     acc, xs, pair = out[:3]
     if fs is not None:
         with jax.named_scope("fsi.reaction"):
-            fs = fs.replace(force=fsi.reaction(pair, state.fluid.mass, pr.idx, first,
-                                               phys.n_structure))
+            idx_s = state.nbrs.idx[first:first + phys.n_structure]
+            fs = fs.replace(force=fsi.reaction(pair, state.fluid.mass, pr.idx, idx_s, first))
     state = state.replace(fluid=state.fluid.replace(acc=acc, xsph=xs), fsi=fs)
     return state, (out[3] if shared else None)
 

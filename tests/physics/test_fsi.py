@@ -207,10 +207,13 @@ def test_force_on_structure_is_the_exact_reaction(method):
     np.testing.assert_allclose(ma.sum(0) + f.sum(0), 0.0, atol=1e-12 * scale)
 
 
-def test_reaction_scatter_counts_each_pair_once():
+def test_reaction_counts_each_pair_once():
+    """2 fluid rows (0, 1), structure particles 2 and 3, padding 4: fluid 0 sees both, fluid 1
+    sees 3 (and fluid 0); the structure rows list their fluid neighbours in another order."""
     pair = jnp.asarray(np.arange(12, dtype=float).reshape(2, 3, 2))
-    idx = jnp.asarray([[2, 3, 4], [3, 0, 4]])      # 2 fluid, first structure index 2, ns 2
-    out = fsi.reaction(pair, jnp.asarray([1.0, 2.0]), idx, 2, 2)
+    idx_f = jnp.asarray([[2, 3, 4], [3, 0, 4]])
+    idx_s = jnp.asarray([[4, 0, 4], [1, 4, 0]])
+    out = fsi.reaction(pair, jnp.asarray([1.0, 2.0]), idx_f, idx_s, 2)
     np.testing.assert_allclose(np.asarray(out), [[-0.0, -1.0], [-(2 + 2 * 6), -(3 + 2 * 7)]])
 
 
