@@ -129,10 +129,10 @@ def density_rate(phys, sp, rho_i, pr: Pairs, eps=None, rho_intrinsic=None):
         if eps is not None:
             rows = rho_i.shape[0]
             diffused = (rho_intrinsic[:rows], gather(rho_intrinsic, pr.idx))
-        # both sums in one reduction over the neighbour axis (one loop for XLA)
-        both = jnp.sum(jnp.stack([cont, delta_pairs(sp.delta, sp.c0, rho_i, pr, diffused)],
-                                 axis=-1), axis=1)
-        return rho_i * both[:, 0] + (1.0 if eps is None else eps) * both[:, 1]
+        # both sums in one variadic reduction over the neighbour axis (a stacked
+        # (rows, K, 2) array would be written out first)
+        c_sum, d_sum = sum_neighbours(cont, delta_pairs(sp.delta, sp.c0, rho_i, pr, diffused))
+        return rho_i * c_sum + (1.0 if eps is None else eps) * d_sum
 
 
 def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, eps=None,
