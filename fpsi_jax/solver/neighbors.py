@@ -154,13 +154,46 @@ def rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
     off, takes the rest); more than K valid neighbours set the overflow flag as jax-md
     does, and the running count is :func:`_running_count`. 6.9k-particle dam break, as a
     jitted call of its own: 7.4–7.8 ms against jax-md's 29–35 ms (docs/performance.md)."""
-    cl = nbrs.cell_list_fn.update(xs, nbrs.cell_list_capacity)
+    cl = cell_list(cfg, xs, nbrs.cell_list_capacity)
     idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, nbrs.idx.shape[1])
     err = nbrs.error.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW,
                             cl.did_buffer_overflow)
     err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
                      occupancy > nbrs.idx.shape[1])
     return nbrs.set(idx=idx, reference_position=xs, error=err)
+
+
+_PACKED_LIMIT = 2 ** 31      # packed keys hash·N + i must fit an int32
+
+
+def cell_list(cfg: NeighborConfig, xs, cell_capacity: int) -> partition.CellList:
+    """jax-md's cell list (``partition.cell_list(...).update``: the same grid, buffers and
+    overflow flag, slot for slot) for positions ``xs`` in the list's frame.
+
+    jax-md orders the particles by cell with a stable ``argsort`` of the cell hashes, a
+    two-operand sort; when hash·N + i fits in an int32 the same permutation comes from one
+    sort of those packed keys, which XLA:CPU sorts 5× faster (8 048 particles: 0.26 against
+    1.4 ms, 1.25 of a 7 ms rebuild of the elastic gate's list)."""
+    _, _, box = _family(cfg)
+    n, dim = xs.shape
+    box = np.asarray(box).reshape(1, -1)
+    _, cell_size, per_side, count = partition._cell_dimensions(dim, box, cfg.list_radius)
+    hash_mult = partition._compute_hash_constants(dim, per_side)
+    cells = jnp.mod(jnp.array(xs / cell_size, dtype=jnp.int32), per_side)
+    hashes = jnp.sum(cells * hash_mult, axis=1)
+    ids = jnp.arange(n, dtype=jnp.int32)
+    if int(count) * n < _PACKED_LIMIT:
+        order = jnp.mod(jax.lax.sort(hashes * n + ids), n)
+    else:
+        order = jnp.argsort(hashes)
+    slot = hashes[order] * cell_capacity + jnp.mod(ids, cell_capacity)
+    pos = jnp.zeros((count * cell_capacity, dim), xs.dtype).at[slot].set(xs[order])
+    cid = jnp.full((count * cell_capacity, 1), n, jnp.int32).at[slot].set(order[:, None])
+    occupancy = jnp.zeros(count, jnp.int32).at[hashes].add(1)
+    return partition.CellList(
+        partition.unflatten_cell_buffer(pos, per_side, dim),
+        partition.unflatten_cell_buffer(cid, per_side, dim), cells, {},
+        jnp.max(occupancy) > cell_capacity, cell_capacity, cell_size, None)
 
 
 def _dense_rows(cl, xs, cut, k):

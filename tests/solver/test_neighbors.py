@@ -48,6 +48,28 @@ def test_rebuild_equals_jax_md_dense_list():
         np.testing.assert_array_equal(np.asarray(got.reference_position), np.asarray(xp))
 
 
+@pytest.mark.parametrize("packed", [True, False])
+def test_cell_list_equals_jax_md_cell_list(packed, monkeypatch):
+    """neighbors.cell_list fills jax-md's buffers slot for slot, with the packed-key sort
+    and with the argsort it falls back to when hash·N + i would not fit an int32, and flags
+    a full cell as jax-md does."""
+    import jax
+    import jax.numpy as jnp
+    cfg, xs, nbrs = _dam_break_list()
+    if not packed:
+        monkeypatch.setattr(neighbors, "_PACKED_LIMIT", 0)
+    rng = np.random.default_rng(5)
+    xp = xs + jnp.asarray(rng.normal(0.0, cfg.skin, xs.shape), xs.dtype)
+    for cap in (nbrs.cell_list_capacity, 2):
+        want = jax.jit(lambda p: nbrs.cell_list_fn.update(p, cap))(xp)
+        got = jax.jit(lambda p: neighbors.cell_list(cfg, p, cap))(xp)
+        for name in ("id_buffer", "position_buffer", "particle_cell_id"):
+            np.testing.assert_array_equal(np.asarray(getattr(got, name)),
+                                          np.asarray(getattr(want, name)), err_msg=name)
+        assert bool(got.did_buffer_overflow) == bool(want.did_buffer_overflow)
+        assert bool(got.did_buffer_overflow) == (cap == 2)
+
+
 def test_rebuild_flags_overflow_like_jax_md():
     """Squeezing the particles towards the column's centre overflows the K slots: both
     jax-md and neighbors.rebuild raise the flag (the host then grows the list)."""
