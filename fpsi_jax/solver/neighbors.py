@@ -213,9 +213,11 @@ def _dense_rows(cl, xs, cut, k):
     valid = (r2 < cut * cut) & (cand < n) & (cand != jnp.arange(n)[:, None])
     count = _running_count(valid, cells.shape[1], cap)
     slot = jnp.where(valid & (count <= k), count - 1, k)
-    rows = jnp.arange(n)[:, None]
-    idx = jnp.full((n, k + 1), n, jnp.int32).at[rows, slot].set(cand)[:, :k]
-    return idx, jnp.max(count[:, -1])
+    # one flat index per candidate (row·(K+1) + slot): a scatter with (row, slot) index
+    # pairs first writes an (N·9C, 2) index array (gate list: 2.7 against 2.1 ms)
+    flat = (jnp.arange(n, dtype=jnp.int32)[:, None] * (k + 1) + slot).reshape(-1)
+    idx = jnp.full((n * (k + 1),), n, jnp.int32).at[flat].set(cand.reshape(-1))
+    return idx.reshape(n, k + 1)[:, :k], jnp.max(count[:, -1])
 
 
 def _running_count(valid, n_cells, cap):
