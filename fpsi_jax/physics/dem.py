@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .pairs import perp
+from .pairs import perp, sum_neighbours
 
 
 def _safe_norm(d):
@@ -83,9 +83,11 @@ def _contact_sum(dp, nrm, delta, ra, rb, dv, omega_a, omega_b, m, shear, dt):
     vs = jnp.sum(dv * t, axis=-1) - omega_b * lb - omega_a * la
     fn, fs, hist = linear_contact(dp.kn, dp.ks, dp.mu, dp.beta_n, dp.beta_s, delta, vn, vs,
                                   shear, m, dt)
-    force = -jnp.sum(fn[..., None] * nrm + fs[..., None] * t, axis=1)
-    torque = -jnp.sum(fs * la, axis=1)
-    return force, torque, hist, delta
+    # three (n, K) terms summed over the slot axis in one variadic reduction: a sum of the
+    # (n, K, 2) force over its middle axis ran 3× slower on XLA:CPU
+    fx, fy, tq = sum_neighbours(fn * nrm[..., 0] + fs * t[..., 0],
+                                fn * nrm[..., 1] + fs * t[..., 1], fs * la)
+    return -jnp.stack([fx, fy], axis=-1), -tq, hist, delta
 
 
 def disc_contacts(dp, x, v, omega, radius, mass, fixed, idx, shear, dt):

@@ -55,7 +55,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 
 from ..model.options import Drag, Voidage
-from .pairs import gather, safe_sqrt
+from .pairs import gather, safe_sqrt, sum_neighbours
 
 ERGUN_LIMIT = 0.8        # W20: Ergun for ε ≤ 0.8, Wen–Yu above
 RE_NEWTON = 1000.0       # W22: C_d = 0.44 above
@@ -295,7 +295,8 @@ def lubrication_on_discs(x, v, radius, wet, idx, mu, gap_min, cutoff):
     f = lubrication(x[:, None, :] - nbr[..., 0:2], v[:, None, :] - nbr[..., 2:4], d_mean, mu,
                     gap_min * d_mean, cutoff * d_mean)
     pair = valid & wet[:, None] & (nbr[..., 5] > 0)
-    return jnp.sum(jnp.where(pair[..., None], f, 0.0), axis=1)
+    fx, fy = sum_neighbours(jnp.where(pair, f[..., 0], 0.0), jnp.where(pair, f[..., 1], 0.0))
+    return jnp.stack([fx, fy], axis=-1)
 
 
 def voidage_at(kern, x_f, h_f, x_p, vol_p, mode=Voidage.AREA):

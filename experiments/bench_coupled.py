@@ -1,0 +1,143 @@
+"""Where a coupled step's time goes: the elastic gate and the two-phase dam break (or any
+registered scene with fluid and discs), per step and per part.
+
+    .venv/bin/python experiments/bench_coupled.py [--cases elastic_gate two_phase_dam_break]
+                                                  [--warm 0.05] [--steps 100] [--reps 5]
+                                                  [--profile]
+
+For each case: a run of ``--warm`` simulated seconds (the flow has started), then, from that
+state, the median of ``--reps`` compiled chunks of ``--steps`` of
+
+* the whole step (``solver.step``), with the neighbour rebuilds that fall in the chunk,
+* the DEM part alone (``stages.discs``: all sub-steps of a step),
+* a forced rebuild of the SPH list (positions nudged every time so nothing is hoisted),
+
+and the rebuild interval seen in the whole-step chunk. ``--profile`` adds the time per
+named scope (``jax.named_scope`` in the stages and physics modules) from a JAX profiler
+trace of one chunk: the trace's per-op times are summed by the op's scope (ops outside any
+scope are listed by their primitive). Profiling slows small ops; read the shares, not the
+absolute figures. Writes experiments/results/bench_coupled.json.
+"""
+from __future__ import annotations
+
+import argparse
+import collections
+import glob
+import gzip
+import json
+import os
+import re
+import statistics
+import tempfile
+import time
+
+import jax
+import jax.numpy as jnp
+
+from fpsi_jax import cases, solver
+from fpsi_jax.run.driver import setup, simulate
+from fpsi_jax.solver import neighbors, stages
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def _median_ms(fn, state, steps, reps):
+    jax.block_until_ready(fn(state))
+    walls = []
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(state))
+        walls.append(time.perf_counter() - t0)
+    return statistics.median(walls) / steps * 1e3
+
+
+def _loop(body, steps):
+    return jax.jit(lambda s: jax.lax.fori_loop(0, steps, lambda i, c: body(i, c), s))
+
+
+def scope_profile(fn, state, steps):
+    """µs per step by named scope from a profiler trace of one call of ``fn``."""
+    hlo = fn.lower(state).compile().as_text()
+    scope = {}
+    for m in re.finditer(r'^\s*%?([\w.\-]+) = .*?op_name="([^"]*)"', hlo, re.M):
+        parts = [p for p in m.group(2).split("/")
+                 if not (p.startswith("jit(") or p in ("while", "body", "closed_call",
+                                                       "cond", "branch_1_fun"))]
+        dem = [p for p in parts if p.startswith("step.dem_substeps")]
+        named = [p for p in parts if "." in p and not p.startswith("step.dem_substeps")]
+        head = named[0] if named else (parts[-1] if parts else "?")
+        scope[m.group(1)] = ("dem sub-step: " if dem else "") + head
+    with tempfile.TemporaryDirectory() as d:
+        with jax.profiler.trace(d):
+            jax.block_until_ready(fn(state))
+        trace = glob.glob(os.path.join(d, "**", "*.trace.json.gz"), recursive=True)[0]
+        events = json.load(gzip.open(trace))["traceEvents"]
+    total = collections.Counter()
+    for e in events:
+        if e.get("ph") == "X" and e.get("name") in scope and not e["name"].startswith("while"):
+            total[scope[e["name"]]] += e["dur"]
+    return {k: v / steps for k, v in total.most_common()}
+
+
+def bench(name, warm, steps, reps, profile):
+    scene = cases.build(name, t_end=warm)
+    state = simulate(scene, progress=False).state
+    phys, params = setup(scene)
+    p = params.as_arrays(solver.dtype(phys))
+    whole = _loop(lambda i, s: solver.step(phys, s, p), steps)
+    dem = _loop(lambda i, s: stages.discs(phys, p, s), steps)
+    cfg = phys.neighbors
+
+    def nudge(i, carry):
+        nb, x = carry
+        x = x + 1e-7 * jnp.sin(i + x)
+        return neighbors.rebuild(cfg, nb, neighbors.shift(cfg, x)), x
+
+    rebuild = jax.jit(lambda c: jax.lax.fori_loop(0, steps, nudge, c))
+    x0 = stages.sph_positions(state)
+    end = whole(state)
+    row = {"case": name, "t_from": float(state.t), "steps": steps, "reps": reps,
+           "n_fluid": phys.n_fluid, "n_boundary": phys.n_boundary, "n_discs": phys.n_solid,
+           "dem_substeps": phys.dem_substeps, "sph_capacity": int(state.nbrs.idx.shape[1]),
+           "dem_capacity": int(state.solid_nbrs.idx.shape[1]),
+           "step_ms": _median_ms(whole, state, steps, reps),
+           "discs_ms": _median_ms(dem, state, steps, reps),
+           "rebuild_ms": _median_ms(rebuild, (state.nbrs, x0), steps, reps),
+           "rebuilds_in_chunk": int(end.status.rebuilds - state.status.rebuilds)}
+    row["substep_us"] = row["discs_ms"] / phys.dem_substeps * 1e3
+    row["rebuild_share"] = (row["rebuild_ms"] * row["rebuilds_in_chunk"] / steps
+                            / row["step_ms"])
+    if profile:
+        row["profile_us_per_step"] = scope_profile(whole, state, steps)
+    return row
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cases", nargs="*", default=["elastic_gate", "two_phase_dam_break"])
+    ap.add_argument("--warm", type=float, default=0.05, help="simulated seconds first")
+    ap.add_argument("--steps", type=int, default=100)
+    ap.add_argument("--reps", type=int, default=5)
+    ap.add_argument("--profile", action="store_true")
+    ap.add_argument("--out", default=os.path.join(HERE, "results", "bench_coupled.json"))
+    args = ap.parse_args()
+    rows = []
+    for name in args.cases:
+        r = bench(name, args.warm, args.steps, args.reps, args.profile)
+        rows.append(r)
+        print(f"{name}: step {r['step_ms']:.2f} ms; DEM {r['discs_ms']:.2f} ms "
+              f"({r['dem_substeps']} sub-steps of {r['substep_us']:.0f} us, "
+              f"{r['n_discs']} discs); SPH rebuild {r['rebuild_ms']:.2f} ms every "
+              f"{args.steps / max(r['rebuilds_in_chunk'], 1):.1f} steps "
+              f"({100 * r['rebuild_share']:.0f} % of the step)", flush=True)
+        for k, v in list(r.get("profile_us_per_step", {}).items())[:15]:
+            print(f"    {v:9.1f} us/step  {k}")
+    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+    with open(args.out, "w") as fh:
+        json.dump({"timing": f"median of {args.reps} chunks of {args.steps} steps after "
+                             f"{args.warm} s of simulated flow", "jax": jax.__version__,
+                   "backend": jax.default_backend(), "rows": rows}, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()
