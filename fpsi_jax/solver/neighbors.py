@@ -174,9 +174,8 @@ def cell_list(cfg: NeighborConfig, xs, cell_capacity: int) -> partition.CellList
     two-operand sort; when hash·N + i fits in an int32 the same permutation comes from one
     sort of those packed keys, which XLA:CPU sorts 5× faster (8 048 particles: 0.26 against
     1.4 ms, 1.25 of a 7 ms rebuild of the elastic gate's list)."""
-    _, _, box = _family(cfg)
     n, dim = xs.shape
-    box = np.asarray(box).reshape(1, -1)
+    box = np.asarray(cfg.box, np.float64).astype(np.float32).reshape(1, -1)  # as _family
     _, cell_size, per_side, count = partition._cell_dimensions(dim, box, cfg.list_radius)
     hash_mult = partition._compute_hash_constants(dim, per_side)
     cells = jnp.mod(jnp.array(xs / cell_size, dtype=jnp.int32), per_side)
