@@ -71,11 +71,13 @@ def bond_loads(bp, kind, x, theta, radius, i, j, d0, e0):
     ra, rb = radius[i], radius[j]
     r_bar = bond_radius(bp, ra, rb)
     area, inertia = section(kind, r_bar, bp.thickness)
-    raw = jnp.arctan2(e0[:, 0] * n[:, 1] - e0[:, 1] * n[:, 0], jnp.sum(e0 * n, axis=-1))
-    # atan2 lives in (−π, π] but the discs' rotations do not: unwrap the axis rotation to
-    # the branch nearest the discs' mean rotation, so a tumbling bonded pair stays unloaded
+    # the axis rotation Δφ is the angle from e0 to n, but atan2 lives in (−π, π] and the
+    # discs' rotations do not: take it on the branch nearest the discs' mean rotation θ̄,
+    # Δφ = θ̄ + ∠(R(θ̄) e0, n), so a tumbling bonded pair stays unloaded (one atan2)
     mean = 0.5 * (theta[i] + theta[j])
-    dphi = mean + jnp.arctan2(jnp.sin(raw - mean), jnp.cos(raw - mean))
+    c, s = jnp.cos(mean), jnp.sin(mean)
+    ex, ey = c * e0[:, 0] - s * e0[:, 1], s * e0[:, 0] + c * e0[:, 1]
+    dphi = mean + jnp.arctan2(ex * n[:, 1] - ey * n[:, 0], ex * n[:, 0] + ey * n[:, 1])
     la, lb = d0 * ra / (ra + rb), d0 * rb / (ra + rb)
     us = d0 * dphi - lb * theta[j] - la * theta[i]
     c = (ra + rb) / d0
