@@ -1,8 +1,8 @@
 """Runs that keep going: fast versions of experiments/soak.py (every scene to 3 × t_end).
 
 The dam break at 10 mm to 2 s (five times its default end: the run-up jet and the sloshing
-that follows) and the coarse elastic gate to 1 s (2.5 × its end: the gate rings down after
-the reservoir empties) run to the end with every particle finite and in the domain or
+that follows) and, marked slow, the coarse elastic gate to 1 s (2.5 × its end: the gate
+rings down after the reservoir empties) run to the end with every particle finite and in the domain or
 parked, the flow stays weakly compressible (Mach number |v|/c0 < 0.3, density within about
 4.5 %), and the mechanical energy of what is left never grows by more than the fluid's
 initial compression energy can give back (≈ g H / c0² of it: 0.5 % for these scenes;
@@ -43,6 +43,7 @@ def test_dam_break_runs_for_two_seconds():
     assert kept.sum() >= 0.99 * kept.size              # the open top lets a few out at most
 
 
+@pytest.mark.slow          # ~45 s: `make test-slow`; experiments/soak.py runs every scene
 @pytest.mark.filterwarnings("ignore::UserWarning")
 def test_coarse_gate_runs_for_one_second():
     sc = cases.build("elastic_gate", **GATE_COARSE)

@@ -23,11 +23,13 @@ Layout of a file::
     attrs: scene, physics, params, run (JSON), fpsi_version, status, message
 
 A frame is written whole or not at all: its group is written under a temporary name and
-moved into place, then the sidecar gets its block, then /time and /step grow by one and
-the file is flushed; :func:`read` only counts frames listed in /time and checks that each
-is complete. The sidecar lists the same frames: each frame appends one block in a single
-write at the end of the file (O(1) per frame), so a run killed at any moment leaves it
-matching the file (up to the microseconds between the block and /time).
+moved into place, the checkpoint is saved and the file flushed, then /time and /step grow
+by one and the file is flushed again, and last the sidecar gets the frame's block;
+:func:`read` only counts frames listed in /time and checks that each is complete. The
+sidecar lists the same frames: each frame appends one block in a single write at the end
+of the file (O(1) per frame), so a run killed at any moment leaves it matching the file,
+or, for a kill during that one write, one frame behind it (never ahead: every frame it
+lists is in /time); ``--resume`` rewrites it whole.
 
 Plain datasets only (no HyperSlab items: ParaView's default Xdmf3 reader crashes on
 hyperslab geometry and drops hyperslab attributes), positions as XY geometry, velocities
@@ -359,11 +361,14 @@ class Writer:
             if checkpoint:
                 save_checkpoint(self.f, state, k)
             self.f.flush()
-            append_xdmf(self.path, self.f, k, float(state.t))
             for name, v in (("time", float(state.t)), ("step", int(state.step))):
                 self.f[name].resize(k + 1, axis=0)
                 self.f[name][k] = v
             self.f.flush()
+            # the sidecar last: a kill can leave it one frame behind the file (for the
+            # one write of its block; --resume rewrites it whole), never listing a frame
+            # that /time does not
+            append_xdmf(self.path, self.f, k, float(state.t))
         except OSError as e:
             raise OutputError(f"writing frame {k} to {self.path} failed: "
                               f"{os.strerror(e.errno) if e.errno else e}") from e
