@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .pairs import FAR, gather, safe_sqrt
+from .pairs import FAR, gather, safe_sqrt, sum_neighbours
 
 
 def extrapolated_pressure(n_fluid, kern, gravity, x, h, rho, p, idx_b,
@@ -31,8 +31,9 @@ def extrapolated_pressure(n_fluid, kern, gravity, x, h, rho, p, idx_b,
     w = jnp.where(idx_b < n_fluid, kern.w(r, 0.5 * (hb[:, None] + nbr[..., 2])), 0.0)
     ab = jnp.zeros_like(xb) if acc_b is None else acc_b
     g_minus_a = gravity[None, :] - ab
-    num = jnp.sum(w * nbr[..., 4], axis=1) + jnp.sum(
-        g_minus_a * jnp.sum((w * nbr[..., 3])[..., None] * dx, axis=1), axis=-1)
-    den = jnp.sum(w, axis=1)
+    # the four sums over the slots in one variadic reduction of (n_b, K) terms
+    wr = w * nbr[..., 3]
+    s_p, s_x, s_y, den = sum_neighbours(w * nbr[..., 4], wr * dx[..., 0], wr * dx[..., 1], w)
+    num = s_p + g_minus_a[:, 0] * s_x + g_minus_a[:, 1] * s_y
     pb = jnp.maximum(jnp.where(den > 0, num / jnp.where(den > 0, den, 1.0), 0.0), 0.0)
     return pb
