@@ -31,6 +31,8 @@ class NeighborConfig:
             has moved more than skin/2 since the last build
     capacity_multiplier, extra_capacity   jax-md allocation slack; grown on overflow
     origin, box   the domain rectangle: positions are shifted by ``origin`` into [0, box)
+    row_block     rows per block of the rebuild's candidate pass (0: all rows at once;
+                  ``Physics.pair_block``)
     """
 
     r_cut: float
@@ -39,6 +41,7 @@ class NeighborConfig:
     box: tuple[float, float]
     capacity_multiplier: float = 1.25
     extra_capacity: int = 0
+    row_block: int = 0
 
     @property
     def list_radius(self) -> float:
@@ -88,7 +91,19 @@ RANGES = {"h_margin": (1.0, 2.0, False, False, False),
           "capacity_multiplier": (1.0, 10.0, False, False, False),
           "dem_skin": (0.0, 2.0, False, False, False),        # × R_max
           "eps_floor": (0.0, 1.0, False, True, False),
-          "dem_substeps": (1, 10000, False, False, True)}
+          "dem_substeps": (1, 10000, False, False, True),
+          "pair_block": (0, 10**8, False, False, True)}
+
+
+#: rows per block of the SPH pair passes and list rebuild on a CPU (Physics.pair_block)
+CPU_PAIR_BLOCK = 1024
+
+
+def default_pair_block() -> int:
+    """:data:`CPU_PAIR_BLOCK` when JAX computes on a CPU, else 0 (one pass over all rows:
+    an accelerator wants the widest arrays; cache blocking is a CPU matter)."""
+    import jax
+    return CPU_PAIR_BLOCK if jax.default_backend() == "cpu" else 0
 
 
 def check_options(opts: dict) -> dict:
@@ -158,6 +173,13 @@ class Physics:
                            see fpi.py
       lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)
 
+    How the SPH pair sums are cut (no effect on the result beyond float round-off):
+      pair_block           rows per block of the density and momentum pair passes and of the
+                           list rebuild (pairs.over_row_blocks): a block's (rows, K) pair
+                           arrays stay in the CPU's cache. Default :data:`CPU_PAIR_BLOCK`
+                           on a CPU, 0 (all rows in one pass) on an accelerator; scenes
+                           with fewer than 4 blocks' rows use one pass anyway
+
     The domain (health checks) and its open sides:
       domain_lo, domain_hi the rectangle every particle in the computation stays inside
       open_sides           sides (options.Side) a particle may leave through: it is then
@@ -200,12 +222,13 @@ class Physics:
     domain_hi: tuple | None = None
     open_sides: tuple = ()
     parking: Parking | None = None
+    pair_block: int = 0
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
                "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
                "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section",
                "dem_skin", "fsi", "dem_substeps", "fpi", "voidage", "lubrication",
-               "fpi_pressure", "eps_floor", "drag")
+               "fpi_pressure", "eps_floor", "drag", "pair_block")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,
@@ -236,6 +259,8 @@ class Physics:
         skin_factor = opts.pop("skin", 0.25 if scene.fsi_coupled else 0.4)
         cap = opts.pop("capacity_multiplier", 1.25)
         dem_skin = float(opts.pop("dem_skin", 0.5))
+        if "pair_block" not in opts:
+            opts["pair_block"] = default_pair_block()
         h_margin = float(opts.get("h_margin", 1.05))
         if opts.get("dem_substeps", 1) is None:
             opts.pop("dem_substeps")
@@ -267,7 +292,8 @@ class Physics:
             h_all = [b.h for b in (scene.fluid, scene.boundary) if b is not None]
             h_max = float(max(np.max(h) for h in h_all)) * h_margin
             nb = NeighborConfig(r_cut=KERNEL_SUPPORT * h_max, skin=skin_factor * h_max / h_margin,
-                                origin=lo, box=box, capacity_multiplier=float(cap))
+                                origin=lo, box=box, capacity_multiplier=float(cap),
+                                row_block=int(opts["pair_block"]))
         if scene.solid is not None:
             r_max = float(np.max(scene.solid.radius))
             reach = 1.0

@@ -13,7 +13,7 @@ Notation: x_ij = x_i − x_j, v_ij = v_i − v_j, h_ij = (h_i + h_j)/2 (K37: sym
 """
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -47,6 +47,17 @@ class Pairs(NamedTuple):
     vij: jax.Array      # v_ij (n_rows, K, 2)
     m_j: jax.Array      # m_j
     rho_j: jax.Array    # ρ_j at the start of the step (for the volumes m_j/ρ_j)
+    row0: Any = 0       # index of the first row (a traced scalar inside :func:`over_row_blocks`)
+
+    def own(self, a):
+        """The rows' own entries of an all-particle array ``a``: a[row0 : row0 + rows]."""
+        return _rows_of(a, self.row0, self.idx.shape[0])
+
+
+def _rows_of(a, row0, rows):
+    if isinstance(row0, int):
+        return a[row0:row0 + rows]
+    return jax.lax.dynamic_slice_in_dim(a, row0, rows, axis=0)
 
 
 @jax.custom_jvp
@@ -74,17 +85,41 @@ def gather(a, idx, fill=1.0):
     return jnp.concatenate([a, pad], axis=0)[idx]
 
 
-def pairs(kern, n_fluid, x, v, h, m, rho, idx) -> Pairs:
-    """Pair geometry for the rows ``idx`` (the first idx.shape[0] particles of x). One packed
-    gather of [x, y, vx, vy, h, m, ρ]; the padding row sits far away so W = F = 0 there."""
+def pairs(kern, n_fluid, x, v, h, m, rho, idx, row0=0) -> Pairs:
+    """Pair geometry for the rows ``idx`` (particles row0 … row0 + idx.shape[0] − 1 of x).
+    One packed gather of [x, y, vx, vy, h, m, ρ]; the padding row sits far away so
+    W = F = 0 there."""
     rows = idx.shape[0]
     table = jnp.concatenate([x, v, h[:, None], m[:, None], rho[:, None]], axis=1)
     dummy = jnp.array([FAR, FAR, 0.0, 0.0, 1.0, 1.0, 1.0], dtype=table.dtype)[None]
     nbr = jnp.concatenate([table, dummy], axis=0)[idx]   # (rows, K, 7)
-    dx = x[:rows, None, :] - nbr[..., 0:2]
+    own = _rows_of(table, row0, rows)
+    dx = own[:, None, 0:2] - nbr[..., 0:2]
     r2 = jnp.sum(dx * dx, axis=-1)
-    hij = 0.5 * (h[:rows, None] + nbr[..., 4])
+    hij = 0.5 * (own[:, 4, None] + nbr[..., 4])
     w = kern.w(safe_sqrt(r2), hij)
     f = kern.grad_factor(r2, hij)
-    vij = v[:rows, None, :] - nbr[..., 2:4]
-    return Pairs(idx, idx < n_fluid, dx, r2, hij, w, f, vij, nbr[..., 5], nbr[..., 6])
+    vij = own[:, None, 2:4] - nbr[..., 2:4]
+    return Pairs(idx, idx < n_fluid, dx, r2, hij, w, f, vij, nbr[..., 5], nbr[..., 6], row0)
+
+
+def over_row_blocks(fn, n_rows: int, block: int):
+    """fn(row0, rows) → pytree of (rows, …) arrays, evaluated for all ``n_rows`` rows in
+    blocks of ``block`` rows (a ``lax.map``), so that the (block, K) pair arrays of one
+    block stay in cache instead of (n_rows, K) arrays streaming through memory
+    (docs/performance.md, "Pair passes in row blocks"). The last block starts at
+    n_rows − block and only its new rows are kept; the block is evened out to
+    ⌈n_rows / ⌈n_rows / block⌉⌉ rows so that few rows are done twice. ``block`` 0, or
+    n_rows < 4 block (a few blocks gain nothing): one call fn(0, n_rows)."""
+    if not block or n_rows < 4 * block:
+        return fn(0, n_rows)
+    nb = -(-n_rows // block)
+    block = -(-n_rows // nb)          # the fewest rows done twice in the last block
+    starts = jnp.minimum(jnp.arange(nb, dtype=jnp.int32) * block, n_rows - block)
+    out = jax.lax.map(lambda r0: fn(r0, block), starts)
+    keep = n_rows - (nb - 1) * block
+
+    def join(a):
+        head = a[:-1].reshape(((nb - 1) * block,) + a.shape[2:])
+        return jnp.concatenate([head, a[-1, block - keep:]], axis=0)
+    return jax.tree_util.tree_map(join, out)

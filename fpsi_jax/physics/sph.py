@@ -127,8 +127,7 @@ def density_rate(phys, sp, rho_i, pr: Pairs, eps=None, rho_intrinsic=None):
     with jax.named_scope("sph.delta"):
         diffused = None
         if eps is not None:
-            rows = rho_i.shape[0]
-            diffused = (rho_intrinsic[:rows], gather(rho_intrinsic, pr.idx))
+            diffused = (pr.own(rho_intrinsic), gather(rho_intrinsic, pr.idx))
         # both sums in one variadic reduction over the neighbour axis (a stacked
         # (rows, K, 2) array would be written out first)
         c_sum, d_sum = sum_neighbours(cont, delta_pairs(sp.delta, sp.c0, rho_i, pr, diffused))
@@ -150,14 +149,13 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
     replaces the bracket of the fluid–structure pairs (the pressure-gradient coupling, K40:
     ``fsi.pressure_gradient_bracket``). Returns (a, δv_XSPH,
     pair accelerations (rows, K, 2) if ``with_pairs`` else None)."""
-    rows = pr.idx.shape[0]
-    rho_i, p_i = rho[:rows], p[:rows]
+    rho_i, p_i = pr.own(rho), pr.own(p)
     rp = gather(jnp.stack([rho, p], axis=1), pr.idx)   # second (small) gather: new ρ, P
     rho_j, p_j = rp[..., 0], rp[..., 1]
     if eps is None:
         rhp_i, rhp_j = rho_i, rho_j
     else:
-        rhp_i, rhp_j = rho_i * eps[:rows], rho_j * gather(eps, pr.idx)
+        rhp_i, rhp_j = rho_i * pr.own(eps), rho_j * gather(eps, pr.idx)
     with jax.named_scope("sph.pressure"):
         if eps is None:
             coef = (p_i / rhp_i ** 2)[:, None] + p_j / rhp_j ** 2
@@ -181,7 +179,7 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
         with jax.named_scope("fpi.shared_pressure"):
             # the cell's pressure force per unit fluid mass is s_dx summed; the fluid keeps
             # ε_i of it, the grains get the rest
-            keep = eps[:rows]
+            keep = pr.own(eps)
             solid_share = jnp.stack(sum_neighbours(s_dx * pr.dx[..., 0],
                                                    s_dx * pr.dx[..., 1]), axis=1)
             solid_share = (1.0 - keep)[:, None] * solid_share

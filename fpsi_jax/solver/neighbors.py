@@ -26,6 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..model.config import NeighborConfig
+from ..physics.pairs import over_row_blocks
 
 
 class _Deferred:
@@ -155,7 +156,7 @@ def rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
     does, and the running count is :func:`_running_count`. 6.9k-particle dam break, as a
     jitted call of its own: 7.4–7.8 ms against jax-md's 29–35 ms (docs/performance.md)."""
     cl = cell_list(cfg, xs, nbrs.cell_list_capacity)
-    idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, nbrs.idx.shape[1])
+    idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, nbrs.idx.shape[1], cfg.row_block)
     err = nbrs.error.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW,
                             cl.did_buffer_overflow)
     err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
@@ -195,28 +196,40 @@ def cell_list(cfg: NeighborConfig, xs, cell_capacity: int) -> partition.CellList
         jnp.max(occupancy) > cell_capacity, cell_capacity, cell_size, None)
 
 
-def _dense_rows(cl, xs, cut, k):
+def _dense_rows(cl, xs, cut, k, block=0):
     """The first ``k`` neighbours (in jax-md's candidate order) of every particle from the
-    cell list ``cl``, padding = N, and the largest number of neighbours of a particle."""
+    cell list ``cl``, padding = N, and the largest number of neighbours of a particle;
+    computed in row blocks of ``block`` rows (0: all at once), so that the (rows, 9C)
+    candidate arrays of a block stay in cache (pairs.over_row_blocks)."""
     n, dim = xs.shape
     cap = cl.id_buffer.shape[dim]
     buf_shape = cl.id_buffer.shape[:dim]
     per_side = jnp.array(buf_shape[::-1], jnp.int32)
     shifts = jnp.asarray(_NEIGHBOUR_CELLS[dim])
-    cells = jnp.mod(cl.particle_cell_id[:, None, :] + shifts[None], per_side[None, None])
     mult = jnp.array([int(np.prod(buf_shape[dim - i:])) for i in range(dim)], jnp.int32)
-    flat = jnp.sum(cells * mult, axis=2).reshape(-1)
-    cand = cl.id_buffer.reshape((-1, cap))[flat].reshape(n, -1)
-    cpos = cl.position_buffer.reshape((-1, cap, dim))[flat].reshape(n, -1, dim)
-    r2 = jnp.sum((xs[:, None, :] - cpos) ** 2, axis=-1)
-    valid = (r2 < cut * cut) & (cand < n) & (cand != jnp.arange(n)[:, None])
-    count = _running_count(valid, cells.shape[1], cap)
-    slot = jnp.where(valid & (count <= k), count - 1, k)
-    # one flat index per candidate (row·(K+1) + slot): a scatter with (row, slot) index
-    # pairs first writes an (N·9C, 2) index array (gate list: 2.7 against 2.1 ms)
-    flat = (jnp.arange(n, dtype=jnp.int32)[:, None] * (k + 1) + slot).reshape(-1)
-    idx = jnp.full((n * (k + 1),), n, jnp.int32).at[flat].set(cand.reshape(-1))
-    return idx.reshape(n, k + 1)[:, :k], jnp.max(count[:, -1])
+    ids, pos = cl.id_buffer.reshape((-1, cap)), cl.position_buffer.reshape((-1, cap, dim))
+
+    def rows_of(row0, rows):
+        own = lambda a: (a[row0:row0 + rows] if isinstance(row0, int)
+                         else jax.lax.dynamic_slice_in_dim(a, row0, rows, axis=0))
+        x, cell = own(xs), own(cl.particle_cell_id)
+        cells = jnp.mod(cell[:, None, :] + shifts[None], per_side[None, None])
+        flat = jnp.sum(cells * mult, axis=2).reshape(-1)
+        cand = ids[flat].reshape(rows, -1)
+        cpos = pos[flat].reshape(rows, -1, dim)
+        r2 = jnp.sum((x[:, None, :] - cpos) ** 2, axis=-1)
+        me = row0 + jnp.arange(rows, dtype=jnp.int32)
+        valid = (r2 < cut * cut) & (cand < n) & (cand != me[:, None])
+        count = _running_count(valid, cells.shape[1], cap)
+        slot = jnp.where(valid & (count <= k), count - 1, k)
+        # one flat index per candidate (row·(K+1) + slot): a scatter with (row, slot) index
+        # pairs first writes an (N·9C, 2) index array (gate list: 2.7 against 2.1 ms)
+        at = (jnp.arange(rows, dtype=jnp.int32)[:, None] * (k + 1) + slot).reshape(-1)
+        idx = jnp.full((rows * (k + 1),), n, jnp.int32).at[at].set(cand.reshape(-1))
+        return idx.reshape(rows, k + 1)[:, :k], count[:, -1]
+
+    idx, counts = over_row_blocks(rows_of, n, block)
+    return idx, jnp.max(counts)
 
 
 def _running_count(valid, n_cells, cap):

@@ -47,7 +47,7 @@ from ..model.params import Params
 from ..model.state import State
 from ..physics import bonds as bonds_law
 from ..physics import boundary, dem, eos, fpi, fsi, kernels, sph
-from ..physics.pairs import Pairs, pairs
+from ..physics.pairs import Pairs, over_row_blocks, pairs
 from . import exits, health, neighbors
 
 
@@ -317,16 +317,34 @@ def _all(state: State, fluid_value, name: str):
     return _cat(fluid_value, _opt(state.boundary, name), _opt(state.fsi, name))
 
 
-def new_level(phys: Physics, params: Params, state: State, fam: SphFamily, pr: Pairs,
+def pair_pass(phys: Physics, fam: SphFamily, rho_c_all, fn):
+    """fn(Pairs) over the fluid rows of the SPH list, in row blocks of ``phys.pair_block``
+    (pairs.over_row_blocks): the pair geometry of each block (pairs.pairs, with ρ of the
+    volumes m_j/ρ_j from ``rho_c_all``) is built where it is summed, so the density pass and
+    the momentum pass each recompute it rather than reading it back from memory."""
+    kern = kernels.get(phys.kernel)
+
+    def block(row0, rows):
+        idx = (fam.idx[:rows] if isinstance(row0, int)
+               else jax.lax.dynamic_slice_in_dim(fam.idx, row0, rows, axis=0))
+        return fn(pairs(kern, phys.n_fluid, fam.x, fam.v, fam.h, fam.m, rho_c_all, idx, row0))
+    return over_row_blocks(block, phys.n_fluid, phys.pair_block)
+
+
+def new_level(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c_all,
               dt) -> NewLevel:
     """Continuity (K32) with δ-SPH, ρ' = ρ + dt Dρ/Dt, h' by K37, with grains the voidage at
     the new positions (W42: the conserved density is ερ), and P' from the EOS (W46, K35)."""
     sp, f, fp = params.sph, state.fluid, state.fpi
     rho_c = f.rho if fp is None else fp.eps * f.rho
     if fp is None:
-        drho = sph.density_rate(phys, sp, rho_c, pr)
+        drho = pair_pass(phys, fam, rho_c_all,
+                         lambda pr: sph.density_rate(phys, sp, pr.own(rho_c), pr))
     else:
-        drho = sph.density_rate(phys, sp, rho_c, pr, fp.eps, _all(state, f.rho, "rho"))
+        rho_all = _all(state, f.rho, "rho")
+        drho = pair_pass(phys, fam, rho_c_all,
+                         lambda pr: sph.density_rate(phys, sp, pr.own(rho_c), pr,
+                                                     pr.own(fp.eps), rho_all))
     rho_c_new = rho_c + dt * drho
     h_new = f.h
     if phys.variable_h:
@@ -377,7 +395,7 @@ def wall_pressure(phys: Physics, params: Params, state: State, fam: SphFamily,
     return state.replace(boundary=b, fsi=fs)
 
 
-def fluid_momentum(phys: Physics, params: Params, state: State, pr: Pairs,
+def fluid_momentum(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c_all,
                    lvl: NewLevel):
     """The fluid's acceleration and XSPH correction (sph.momentum_rate: W43, K34–K39) at the
     new level, and the reaction of the fluid–structure pairs on the structure (fsi.py).
@@ -394,15 +412,17 @@ def fluid_momentum(phys: Physics, params: Params, state: State, pr: Pairs,
         eps_all = _cat(lvl.eps, None if b is None else jnp.ones_like(b.rho),
                        None if fs is None else jnp.ones_like(fs.rho))
     shared = lvl.eps is not None and phys.fpi_pressure is FpiPressure.SHARED
-    out = sph.momentum_rate(
+    rho_all, p_all = _all(state, lvl.rho, "rho"), _all(state, lvl.p, "p")
+    out = pair_pass(phys, fam, rho_c_all, lambda pr: sph.momentum_rate(
         phys, kernels.get(phys.kernel), params.sph, jnp.asarray(params.gravity),
-        _all(state, lvl.rho, "rho"), _all(state, lvl.p, "p"), pr, with_pairs=fs is not None,
-        eps=eps_all, structure_bracket=bracket, shared=shared)
+        rho_all, p_all, pr, with_pairs=fs is not None, eps=eps_all,
+        structure_bracket=bracket, shared=shared))
     acc, xs, pair = out[:3]
     if fs is not None:
         with jax.named_scope("fsi.reaction"):
             idx_s = state.nbrs.idx[first:first + phys.n_structure]
-            fs = fs.replace(force=fsi.reaction(pair, state.fluid.mass, pr.idx, idx_s, first))
+            fs = fs.replace(force=fsi.reaction(pair, state.fluid.mass,
+                                               fam.idx[:phys.n_fluid], idx_s, first))
     state = state.replace(fluid=state.fluid.replace(acc=acc, xsph=xs), fsi=fs)
     return state, (out[3] if shared else None)
 
@@ -452,11 +472,10 @@ def evaluate_fluid(phys: Physics, params: Params, state: State, dt) -> State:
     rest, and only the drag goes back. Without grains none of this is traced."""
     fam = sph_family(phys, state)
     rho_c = state.fluid.rho if state.fpi is None else state.fpi.eps * state.fluid.rho
-    pr = pairs(kernels.get(phys.kernel), phys.n_fluid, fam.x, fam.v, fam.h, fam.m,
-               _all(state, rho_c, "rho"), fam.idx[:phys.n_fluid])
-    lvl = new_level(phys, params, state, fam, pr, dt)
+    rho_c_all = _all(state, rho_c, "rho")
+    lvl = new_level(phys, params, state, fam, rho_c_all, dt)
     state = wall_pressure(phys, params, state, fam, lvl)
-    state, solid_share = fluid_momentum(phys, params, state, pr, lvl)
+    state, solid_share = fluid_momentum(phys, params, state, fam, rho_c_all, lvl)
     if state.fpi is not None:
         state = grain_forces(phys, params, state, fam, lvl, solid_share)
     return state.replace(fluid=state.fluid.replace(rho=lvl.rho, h=lvl.h))

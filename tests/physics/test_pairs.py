@@ -54,3 +54,34 @@ def test_sum_neighbours_equals_per_term_sums_and_differentiates_with_an_unused_o
     np.testing.assert_allclose(g, jax.grad(run)(2.0, per_term), rtol=1e-6)
     jf = jax.jacfwd(lambda x: pairs.sum_neighbours(x, x * x)[1])(a)
     np.testing.assert_allclose(jf, jax.jacfwd(lambda x: jnp.sum(x * x, axis=1))(a), rtol=1e-6)
+
+
+@pytest.mark.parametrize("n_rows, block", [(40, 10), (41, 10), (47, 8), (20, 10)])
+def test_over_row_blocks_equals_one_pass(n_rows, block):
+    """Row blocks give the one-pass result row for row, including a last block that starts
+    early (its overlapping rows are not taken twice) and a count too small to block."""
+    a = jnp.arange(3.0 * n_rows).reshape(n_rows, 3)
+
+    def fn(row0, rows):
+        own = pairs._rows_of(a, row0, rows)
+        return own * 2.0 + 1.0, jnp.sum(own, axis=1)
+    want = fn(0, n_rows)
+    got = pairs.over_row_blocks(fn, n_rows, block)
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(np.asarray(g), np.asarray(w))
+
+
+def test_pairs_of_rows_from_an_offset_equal_those_rows_of_the_whole_table():
+    """pairs.pairs for the rows from row0 on (a traced row0, as inside the row blocks)
+    equals those rows of the pairs of all rows."""
+    from .sph_reference import IDX, KERN, RHO_OLD, _a
+    whole = _pairs()
+    rho = _a(RHO_OLD)
+    idx = jnp.asarray(IDX, jnp.int32)
+    part = jax.jit(lambda r0: pairs.pairs(
+        KERN, NF, _a(X), _a(V), _a(Hs), _a(M), rho,
+        jax.lax.dynamic_slice_in_dim(idx, r0, 1), r0))(1)
+    for name in ("dx", "r2", "hij", "w", "f", "vij", "m_j", "rho_j"):
+        np.testing.assert_allclose(np.asarray(getattr(part, name)),      # jit vs eager:
+                                   np.asarray(getattr(whole, name))[1:2], rtol=1e-14)
+    np.testing.assert_array_equal(np.asarray(part.own(rho)), np.asarray(rho)[1:2])

@@ -320,13 +320,11 @@ def test_shared_pressure_splits_each_cell_and_creates_no_momentum():
     scene = cases.build("grain_bed", t_end=0.01)
     phys, p, st = init_x64(scene, fpi_pressure="shared", x64=True)
     fam = stages.sph_family(phys, st)
-    rho_c = st.fpi.eps * st.fluid.rho
-    pr = stages.pairs(stages.kernels.get(phys.kernel), phys.n_fluid, fam.x, fam.v, fam.h,
-                      fam.m, stages._all(st, rho_c, "rho"), fam.idx[:phys.n_fluid])
-    lvl = stages.new_level(phys, p, st, fam, pr, 0.0)
-    shared, share = stages.fluid_momentum(phys, p, st, pr, lvl)
+    rho_c = stages._all(st, st.fpi.eps * st.fluid.rho, "rho")
+    lvl = stages.new_level(phys, p, st, fam, rho_c, 0.0)
+    shared, share = stages.fluid_momentum(phys, p, st, fam, rho_c, lvl)
     plain, none = stages.fluid_momentum(dataclasses.replace(phys, fpi_pressure="archimedes"),
-                                        p, st, pr, lvl)
+                                        p, st, fam, rho_c, lvl)
     assert none is None
     eps = np.asarray(lvl.eps)
     m = np.asarray(st.fluid.mass)
@@ -346,3 +344,29 @@ def test_shared_pressure_splits_each_cell_and_creates_no_momentum():
     vol = np.pi * np.asarray(scene.solid.radius) ** 2
     archimedes = 1000.0 * vol.sum() * -g[1]
     assert lift.sum(0)[1] / archimedes == pytest.approx(1.092, abs=0.005)
+
+
+@x64
+@pytest.mark.parametrize("name", ["dam_break", "plate", "grain_bed"])
+def test_sph_evaluation_in_row_blocks_equals_one_pass(name):
+    """Physics.pair_block (the CPU default for large scenes) only changes how the pair passes
+    and the list rebuild are cut into blocks of rows: one SPH evaluation gives the same
+    density, accelerations, XSPH, forces on the structure and on the grains as one pass
+    over all rows, fluid only, with a coupled structure, and with grains (shared pressure)."""
+    scene = {"dam_break": lambda: cases.build("dam_break", dx=0.01),
+             "plate": coarse_plate,
+             "grain_bed": lambda: cases.build("grain_bed", t_end=0.01)}[name]()
+    extra = {"grain_bed": dict(fpi_pressure="shared")}.get(name, {})
+    one = init_x64(scene, pair_block=0, x64=True, **extra)
+    phys = setup(scene, pair_block=13, x64=True, **extra)[0]
+    p, st = one[1:]
+    assert phys.n_fluid >= 4 * 13 and phys.n_fluid % 13    # the last block overlaps
+    evaluate = jax.jit(lambda ph, pp, s: stages.evaluate_fluid(ph, pp, s, pp.dt),
+                       static_argnums=0)
+    want, got = evaluate(*one), evaluate(phys, p, st)
+    leaves = lambda s: [s.fluid.rho, s.fluid.h, s.fluid.acc, s.fluid.xsph] + (
+        [s.fsi.force, s.fsi.p] if s.fsi is not None else []) + (
+        [s.fpi.force, s.fpi.eps] if s.fpi is not None else [])
+    for g, w in zip(leaves(got), leaves(want)):
+        np.testing.assert_allclose(np.asarray(g), np.asarray(w), rtol=1e-12,
+                                   atol=1e-12 * float(np.abs(np.asarray(w)).max()))

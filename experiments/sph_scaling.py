@@ -1,0 +1,117 @@
+"""Cost per particle-step of the SPH dam break from ~7k to ~340k particles, with the pair
+passes and the list rebuild in row blocks (the CPU default, ``Physics.pair_block``) and in
+one pass over all rows (``pair_block = 0``), timed interleaved in one process.
+
+    .venv/bin/python experiments/sph_scaling.py [--dx 0.0029 0.00145 0.00072 0.00051 0.00036]
+                                                [--steps 100] [--reps 5]
+
+For each dx: the full-physics dam break (as bench_sph.py) at the derived step, a warm-up
+chunk (lists grown if they overflow), then ``--reps`` rounds of one chunk of each setting
+from the same warmed-up state, alternating; the median chunk of each. The two settings
+compute the same step (tests/solver/test_stages.py: equal to round-off). Writes
+experiments/results/sph_scaling.csv and sph_scaling.png.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import os
+import statistics
+
+import jax
+import jax.numpy as jnp
+
+from fpsi_jax import cases, solver
+from fpsi_jax.model.config import default_pair_block
+from fpsi_jax.run.driver import setup
+
+from _bench import compile_and_warm_up
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def with_block(phys, block):
+    nb = dataclasses.replace(phys.neighbors, row_block=block)
+    return dataclasses.replace(phys, pair_block=block, neighbors=nb)
+
+
+def row(dx, steps, reps, block):
+    sc = cases.build("dam_break", dx=dx)
+    phys, params = setup(sc)
+    p = params.as_arrays(jnp.float32)
+    st = solver.init_state(sc, phys, p)
+    phys, st, chunk, _ = compile_and_warm_up(with_block(phys, 0), st, p, steps)
+    settings = {0: with_block(phys, 0), block: with_block(phys, block)}
+    walls = {b: [] for b in settings}
+    ends = {}
+    for b, ph in settings.items():          # compile each (untimed)
+        ends[b] = chunk(ph, st)[0]
+    for _ in range(reps):
+        for b, ph in settings.items():
+            end, wall = chunk(ph, st)
+            walls[b].append(wall)
+            ends[b] = end
+    n = sc.fluid.n + sc.boundary.n
+    out = {"dx": dx, "n_particles": n, "n_fluid": sc.fluid.n,
+           "neighbour_capacity": int(st.nbrs.idx.shape[1]), "steps": steps,
+           "rebuilds": int(ends[0].status.rebuilds - st.status.rebuilds),
+           "overflowed": any(bool(e.status.overflow) for e in ends.values()),
+           "pair_block": block}
+    for b, tag in ((0, "one_pass"), (block, "blocks")):
+        m = statistics.median(walls[b]) / steps
+        out[f"ms_per_step_{tag}"] = m * 1e3
+        out[f"M_particle_steps_per_s_{tag}"] = n / m / 1e6
+        out[f"ns_per_particle_step_{tag}"] = m / n * 1e9
+    return out
+
+
+def plot(rows, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    n = [r["n_particles"] for r in rows]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(n, [r["ns_per_particle_step_one_pass"] for r in rows], "o-",
+            label="one pass over all rows")
+    ax.plot(n, [r["ns_per_particle_step_blocks"] for r in rows], "s-",
+            label=f"row blocks of {rows[0]['pair_block']}")
+    ax.set_xscale("log")
+    ax.set_ylim(bottom=0)
+    ax.set_xlabel("particles (fluid + boundary)")
+    ax.set_ylabel("ns per particle-step")
+    ax.set_title("SPH dam break, derived step, 2-core CPU")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--dx", type=float, nargs="*",
+                    default=[0.0029, 0.00145, 0.00072, 0.00051, 0.00036])
+    ap.add_argument("--steps", type=int, default=100)
+    ap.add_argument("--reps", type=int, default=5)
+    ap.add_argument("--block", type=int, default=default_pair_block() or 1024)
+    ap.add_argument("--out", default=os.path.join(HERE, "results", "sph_scaling.csv"))
+    args = ap.parse_args()
+    rows = []
+    for dx in args.dx:
+        r = row(dx, args.steps, args.reps, args.block)
+        rows.append(r)
+        print(f"dx={dx * 1e3:.2f} mm N={r['n_particles']:7d} K={r['neighbour_capacity']} "
+              f"one pass {r['M_particle_steps_per_s_one_pass']:.2f} M p-steps/s "
+              f"({r['ns_per_particle_step_one_pass']:.0f} ns), blocks "
+              f"{r['M_particle_steps_per_s_blocks']:.2f} M "
+              f"({r['ns_per_particle_step_blocks']:.0f} ns), rebuilds {r['rebuilds']}/"
+              f"{args.steps}", flush=True)
+    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+    with open(args.out, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    plot(rows, os.path.splitext(args.out)[0] + ".png")
+
+
+if __name__ == "__main__":
+    main()
