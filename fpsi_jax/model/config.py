@@ -178,7 +178,7 @@ class Physics:
                            list rebuild (pairs.over_row_blocks): a block's (rows, K) pair
                            arrays stay in the CPU's cache. Default :data:`CPU_PAIR_BLOCK`
                            on a CPU, 0 (all rows in one pass) on an accelerator; scenes
-                           with fewer than 4 blocks' rows use one pass anyway
+                           with fewer than pairs.MIN_BLOCKS blocks of rows use one pass
 
     The domain (health checks) and its open sides:
       domain_lo, domain_hi the rectangle every particle in the computation stays inside

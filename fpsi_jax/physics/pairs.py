@@ -103,6 +103,13 @@ def pairs(kern, n_fluid, x, v, h, m, rho, idx, row0=0) -> Pairs:
     return Pairs(idx, idx < n_fluid, dx, r2, hij, w, f, vij, nbr[..., 5], nbr[..., 6], row0)
 
 
+#: fewer blocks than this are done as one pass: below ~16k rows the arrays of all rows still
+#: fit the cache well enough that the blocks' loop costs more than it saves (dam break,
+#: two cores, blocks of 1 024: 12k particles 3.6 against 5.2 ms a step, 18k 6.7 against
+#: 8.5; 24k 12.4 against 9.9; docs/performance.md)
+MIN_BLOCKS = 16
+
+
 def over_row_blocks(fn, n_rows: int, block: int):
     """fn(row0, rows) → pytree of (rows, …) arrays, evaluated for all ``n_rows`` rows in
     blocks of ``block`` rows (a ``lax.map``), so that the (block, K) pair arrays of one
@@ -110,8 +117,8 @@ def over_row_blocks(fn, n_rows: int, block: int):
     (docs/performance.md, "Pair passes in row blocks"). The last block starts at
     n_rows − block and only its new rows are kept; the block is evened out to
     ⌈n_rows / ⌈n_rows / block⌉⌉ rows so that few rows are done twice. ``block`` 0, or
-    n_rows < 4 block (a few blocks gain nothing): one call fn(0, n_rows)."""
-    if not block or n_rows < 4 * block:
+    fewer than :data:`MIN_BLOCKS` blocks of rows: one call fn(0, n_rows)."""
+    if not block or n_rows < MIN_BLOCKS * block:
         return fn(0, n_rows)
     nb = -(-n_rows // block)
     block = -(-n_rows // nb)          # the fewest rows done twice in the last block

@@ -19,6 +19,7 @@ from fpsi_jax.model.config import Physics
 from fpsi_jax.model.params import BondParams, DemParams, Params
 from fpsi_jax.model.scene import BondBlock, Scene, WallBlock
 from fpsi_jax.physics import dem
+from fpsi_jax.physics.pairs import MIN_BLOCKS
 from fpsi_jax.run.driver import setup
 from fpsi_jax.solver import forward, init, stages
 
@@ -360,7 +361,7 @@ def test_sph_evaluation_in_row_blocks_equals_one_pass(name):
     one = init_x64(scene, pair_block=0, x64=True, **extra)
     phys = setup(scene, pair_block=13, x64=True, **extra)[0]
     p, st = one[1:]
-    assert phys.n_fluid >= 4 * 13 and phys.n_fluid % 13    # the last block overlaps
+    assert phys.n_fluid >= MIN_BLOCKS * 13 and phys.n_fluid % 13   # last block overlaps
     evaluate = jax.jit(lambda ph, pp, s: stages.evaluate_fluid(ph, pp, s, pp.dt),
                        static_argnums=0)
     want, got = evaluate(*one), evaluate(phys, p, st)
