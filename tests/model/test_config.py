@@ -26,6 +26,8 @@ def test_physics_is_hashable_and_lists_mechanisms(tiny_tank):
     ({"boundary_pressure": "magic"}, "boundary_pressure"),
     ({"h_margin": 5.0}, "h_margin"),
     ({"bogus": 1}, "bogus"),
+    ({"pair_block": -1}, "pair_block"),
+    ({"pair_block": 2.5}, "pair_block"),
 ])
 def test_bad_physics_options_are_refused(tiny_tank, opts, word):
     with pytest.raises((ParameterError, ValueError), match=word):
@@ -40,3 +42,16 @@ def test_neighbour_skin_follows_the_step():
     bare = dataclasses.replace(sc, options={k: v for k, v in sc.options.items() if k != "fsi"})
     skin = lambda s: Physics.for_scene(s).neighbors.skin / float(np.max(s.fluid.h))
     assert skin(sc) == pytest.approx(0.25) and skin(bare) == pytest.approx(0.4)
+
+
+def test_pair_block_defaults_to_the_cpu_block_and_reaches_the_list(tiny_tank):
+    """On a CPU the pair passes and the rebuild share Physics.pair_block (row blocks of
+    CPU_PAIR_BLOCK); an explicit 0 means one pass over all rows."""
+    from fpsi_jax.model.config import CPU_PAIR_BLOCK, default_pair_block
+    import jax
+    ph = Physics.for_scene(tiny_tank)
+    want = CPU_PAIR_BLOCK if jax.default_backend() == "cpu" else 0
+    assert default_pair_block() == want
+    assert ph.pair_block == want and ph.neighbors.row_block == want
+    none = Physics.for_scene(tiny_tank, pair_block=0)
+    assert none.pair_block == 0 and none.neighbors.row_block == 0
