@@ -51,10 +51,12 @@ class Pairs(NamedTuple):
 
     def own(self, a):
         """The rows' own entries of an all-particle array ``a``: a[row0 : row0 + rows]."""
-        return _rows_of(a, self.row0, self.idx.shape[0])
+        return rows_of(a, self.row0, self.idx.shape[0])
 
 
-def _rows_of(a, row0, rows):
+def rows_of(a, row0, rows: int):
+    """a[row0 : row0 + rows]: a plain slice for a Python int row0, a dynamic slice for a
+    traced one (inside :func:`over_row_blocks`)."""
     if isinstance(row0, int):
         return a[row0:row0 + rows]
     return jax.lax.dynamic_slice_in_dim(a, row0, rows, axis=0)
@@ -93,7 +95,7 @@ def pairs(kern, n_fluid, x, v, h, m, rho, idx, row0=0) -> Pairs:
     table = jnp.concatenate([x, v, h[:, None], m[:, None], rho[:, None]], axis=1)
     dummy = jnp.array([FAR, FAR, 0.0, 0.0, 1.0, 1.0, 1.0], dtype=table.dtype)[None]
     nbr = jnp.concatenate([table, dummy], axis=0)[idx]   # (rows, K, 7)
-    own = _rows_of(table, row0, rows)
+    own = rows_of(table, row0, rows)
     dx = own[:, None, 0:2] - nbr[..., 0:2]
     r2 = jnp.sum(dx * dx, axis=-1)
     hij = 0.5 * (own[:, 4, None] + nbr[..., 4])

@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..model.config import NeighborConfig
-from ..physics.pairs import over_row_blocks
+from ..physics.pairs import over_row_blocks, rows_of
 
 
 class _Deferred:
@@ -196,10 +196,10 @@ def cell_list(cfg: NeighborConfig, xs, cell_capacity: int) -> partition.CellList
         jnp.max(occupancy) > cell_capacity, cell_capacity, cell_size, None)
 
 
-def _dense_rows(cl, xs, cut, k, block=0):
+def _dense_rows(cl, xs, cut, k, block_rows=0):
     """The first ``k`` neighbours (in jax-md's candidate order) of every particle from the
     cell list ``cl``, padding = N, and the largest number of neighbours of a particle;
-    computed in row blocks of ``block`` rows (0: all at once), so that the (rows, 9C)
+    computed in row blocks of ``block_rows`` rows (0: all at once), so that the (rows, 9C)
     candidate arrays of a block stay in cache (pairs.over_row_blocks)."""
     n, dim = xs.shape
     cap = cl.id_buffer.shape[dim]
@@ -209,10 +209,8 @@ def _dense_rows(cl, xs, cut, k, block=0):
     mult = jnp.array([int(np.prod(buf_shape[dim - i:])) for i in range(dim)], jnp.int32)
     ids, pos = cl.id_buffer.reshape((-1, cap)), cl.position_buffer.reshape((-1, cap, dim))
 
-    def rows_of(row0, rows):
-        own = lambda a: (a[row0:row0 + rows] if isinstance(row0, int)
-                         else jax.lax.dynamic_slice_in_dim(a, row0, rows, axis=0))
-        x, cell = own(xs), own(cl.particle_cell_id)
+    def block(row0, rows):
+        x, cell = rows_of(xs, row0, rows), rows_of(cl.particle_cell_id, row0, rows)
         cells = jnp.mod(cell[:, None, :] + shifts[None], per_side[None, None])
         flat = jnp.sum(cells * mult, axis=2).reshape(-1)
         cand = ids[flat].reshape(rows, -1)
@@ -228,7 +226,7 @@ def _dense_rows(cl, xs, cut, k, block=0):
         idx = jnp.full((rows * (k + 1),), n, jnp.int32).at[at].set(cand.reshape(-1))
         return idx.reshape(rows, k + 1)[:, :k], count[:, -1]
 
-    idx, counts = over_row_blocks(rows_of, n, block)
+    idx, counts = over_row_blocks(block, n, block_rows)
     return idx, jnp.max(counts)
 
 

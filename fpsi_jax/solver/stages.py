@@ -14,9 +14,9 @@ drifted with the velocity at the half step):
 
 For the acoustic mode this is the symplectic leapfrog, stable up to ωΔt = 2 (kicking ρ by
 half steps with a stored rate, like v, is unconditionally unstable: see
-tests/solver/test_forward.py::test_density_update_is_stable_for_acoustic_oscillator). The
-geometry of the pairs is computed once and shared by the density and momentum passes; the
-kernel uses h of the start of the step. The XSPH correction δv_XSPH used in a drift is the
+tests/solver/test_forward.py::test_density_update_is_stable_for_acoustic_oscillator). Both
+passes use the pair geometry of the start of the step (each builds it where it sums it:
+:func:`pair_pass`); the kernel uses h of the start of the step. The XSPH correction δv_XSPH used in a drift is the
 one of the previous step; it smooths the transport velocity, so the O(Δt) lag is harmless.
 
 DEM discs use the same kick–drift–kick for translation and rotation (W6, K5):
@@ -47,7 +47,7 @@ from ..model.params import Params
 from ..model.state import State
 from ..physics import bonds as bonds_law
 from ..physics import boundary, dem, eos, fpi, fsi, kernels, sph
-from ..physics.pairs import Pairs, over_row_blocks, pairs
+from ..physics.pairs import over_row_blocks, pairs, rows_of
 from . import exits, health, neighbors
 
 
@@ -325,9 +325,8 @@ def pair_pass(phys: Physics, fam: SphFamily, rho_c_all, fn):
     kern = kernels.get(phys.kernel)
 
     def block(row0, rows):
-        idx = (fam.idx[:rows] if isinstance(row0, int)
-               else jax.lax.dynamic_slice_in_dim(fam.idx, row0, rows, axis=0))
-        return fn(pairs(kern, phys.n_fluid, fam.x, fam.v, fam.h, fam.m, rho_c_all, idx, row0))
+        return fn(pairs(kern, phys.n_fluid, fam.x, fam.v, fam.h, fam.m, rho_c_all,
+                        rows_of(fam.idx, row0, rows), row0))
     return over_row_blocks(block, phys.n_fluid, phys.pair_block)
 
 

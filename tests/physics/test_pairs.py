@@ -63,7 +63,7 @@ def test_over_row_blocks_equals_one_pass(n_rows, block):
     a = jnp.arange(3.0 * n_rows).reshape(n_rows, 3)
 
     def fn(row0, rows):
-        own = pairs._rows_of(a, row0, rows)
+        own = pairs.rows_of(a, row0, rows)
         return own * 2.0 + 1.0, jnp.sum(own, axis=1)
     want = fn(0, n_rows)
     assert (n_rows >= pairs.MIN_BLOCKS * block) == (n_rows != 150)    # 150: one pass
