@@ -14,7 +14,7 @@ from ..model.params import SphParams
 from ..model.scene import FluidBlock
 from ..physics import fpi, kernels
 from ..physics.eos import density
-from .geometry import lattice, polygon_lattice
+from .geometry import fit_spacing, lattice, polygon_lattice  # noqa: F401  (re-exported)
 
 G = 9.81   # |g| [m/s²]; Params.gravity is (0, −G) unless a scene says otherwise
 
@@ -80,9 +80,3 @@ def fluid_among_grains(fluid, x_grain, r_grain, voidage, eps_floor=0.0):
     eps = np.maximum(eps, eps_floor)
     fluid.mass = fluid.mass * eps
     return fluid
-
-
-def fit_spacing(width, dx):
-    """The spacing nearest ``dx`` that fills ``width`` with whole columns (a fluid block that
-    stops short of a wall by more than dx/2 starts out of balance and sloshes)."""
-    return width / max(1, round(width / dx))

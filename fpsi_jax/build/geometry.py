@@ -119,9 +119,21 @@ def touching_pairs(x, radius, tol=1e-6, gap=0.0):
     return BondBlock(i=np.asarray(ii, np.int32)[order], j=np.asarray(jj, np.int32)[order])
 
 
+def fit_spacing(width, dx):
+    """The spacing nearest ``dx`` that fills ``width`` with whole columns (a fluid block that
+    stops short of a wall by more than dx/2 starts out of balance and sloshes)."""
+    return width / max(1, round(width / dx))
+
+
 def tank_walls(width, height, dxb, layers):
     """Fixed particles outside the open-top box [0, width] × [0, height]: floor + two walls,
-    ``layers`` deep, on a dxb lattice (corners filled)."""
+    ``layers`` deep, on a dxb lattice (corners filled). ``width`` must be a whole number of
+    dxb (:func:`fit_spacing`): then the innermost layer of both side walls sits dxb/2
+    outside the wall. (On any other lattice the right wall would stand up to dxb/2 further
+    out than the left, and the fluid column beside it would slosh.)"""
+    if abs(width / dxb - round(width / dxb)) > 1e-6:
+        raise ParameterError(f"tank width {fmt(width)} m is not a whole number of the "
+                             f"boundary spacing {fmt(dxb)} m (fit it: fit_spacing)")
     t = layers * dxb
     outer = lattice(-t, -t, width + 2 * t, height + t, dxb)
     inside = (outer[:, 0] > 0) & (outer[:, 0] < width) & (outer[:, 1] > 0)

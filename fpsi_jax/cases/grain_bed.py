@@ -64,10 +64,10 @@ def random_bed(width, d, n, seed=0, t_settle=0.4):
 
 
 @scene
-def grain_bed(*, width=0.05, water_height=0.1, d=0.0024, layers=4, packing="hex", seed=0,
+def grain_bed(*, width=0.0504, water_height=0.1, d=0.0024, layers=4, packing="hex", seed=0,
               rho_grain=2500.0, dx=0.0024, dx_boundary=0.0015, h0=0.003, mu=1.0e-3,
               c0=None, kn=1.021e9, ks=1.024e7, friction=0.3, beta_n=0.3,
-              voidage="area", eps_floor=0.0, fpi_pressure="archimedes", drag="sphere",
+              voidage="area", eps_floor=0.0, fpi_pressure="shared", drag="sphere",
               alpha_av=0.02, delta=0.1, t_end=2.0) -> Scene:
     """A bed of grains (d 2.4 mm, ρ 2500: the two-phase dam break's) on the floor of a
     closed tank ``width`` wide under ``water_height`` of still water, started hydrostatic.

@@ -7,7 +7,7 @@ import time
 import numpy as np
 
 from ..build import (boundary_block, boundary_layers, check_positive, dam_speed, domain,
-                     hydrostatic_fluid, lattice, sound_speed, sph_params, tank_walls)
+                     fit_spacing, hydrostatic_fluid, lattice, sound_speed, sph_params, tank_walls)
 from ..model.params import Params
 from ..model.scene import Scene
 from ..physics import eos
@@ -44,6 +44,7 @@ def hydrostatic_tank(*, depth=0.3, width=0.3, dx=0.005, dx_boundary=None, h_fact
     sp = sph_params(rho0, c0, mu, dx, r_clump, eps_xsph, delta, alpha=alpha)
     fluid = hydrostatic_fluid(lattice(0.0, 0.0, width, depth, dx), rho0, c0, sp.gamma,
                               depth, dx=dx, h=h)
+    dxb = fit_spacing(width, dxb)
     layers = boundary_layers(h, dxb)
     height = depth * 1.5
     xb = tank_walls(width, height, dxb, layers)

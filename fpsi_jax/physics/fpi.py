@@ -100,6 +100,20 @@ def cell_share_on_grains(rows, force_f, vol_p, n_fluid):
     return jnp.sum(frac[..., None] * gather(force_f, rows.idx, 0.0), axis=1)
 
 
+def mixture_flux(rows, eps_f, u_f, v_p, vol_p, n_fluid):
+    """The mixture's volume flux at each fluid particle, J_f = ε_f u_f + (1 − ε_f) v̄_f, v̄_f
+    the grains' velocity weighted by their part of f's solid fraction, V_p W_pf / Σ_p V_p W_pf
+    (the same weights as :func:`cell_share_on_grains`, whose force is this flux's
+    conjugate). A fluid particle without grains in its support has J = u. (n_f, 2)."""
+    share = jnp.where(rows.valid, rows.w * vol_p[:, None], 0.0)
+    target = jnp.where(rows.valid, rows.idx, n_fluid).reshape(-1)
+    solid = jnp.zeros(n_fluid + 1, share.dtype).at[target].add(share.reshape(-1))
+    mom = jnp.zeros((n_fluid + 1, 2), share.dtype).at[target].add(
+        (share[..., None] * v_p[:, None, :]).reshape(-1, 2))
+    v_bar = mom[:n_fluid] / jnp.where(solid > 0, solid, 1.0)[:n_fluid, None]
+    return eps_f[:, None] * u_f + (1.0 - eps_f)[:, None] * v_bar
+
+
 def shepard(values, w, vol, valid):
     """Σ_f a_f V_f W_pf / Σ_f V_f W_pf (W18, W21) for each grain row; ``values`` (n_p, K) or
     (n_p, K, c). Rows without fluid neighbours get 0 and weight 0."""

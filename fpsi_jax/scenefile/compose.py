@@ -373,6 +373,7 @@ def compose(spec: dict, path: str) -> SceneFile:
     hb = None
     if tank is not None:
         dxb = tank["dx_boundary"] or (sp.dp if sp is not None else None)
+        dxb = None if dxb is None else fit_spacing(tank["width"], dxb)
         hb = tank["h"] or h
         if fluid is not None:
             layers = tank["layers"] or boundary_layers(hb, dxb)

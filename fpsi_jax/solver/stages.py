@@ -47,7 +47,7 @@ from ..model.params import Params
 from ..model.state import State
 from ..physics import bonds as bonds_law
 from ..physics import boundary, dem, eos, fpi, fsi, kernels, sph
-from ..physics.pairs import over_row_blocks, pairs, rows_of
+from ..physics.pairs import gather, over_row_blocks, pairs, rows_of
 from . import exits, health, neighbors
 
 
@@ -333,9 +333,15 @@ def pair_pass(phys: Physics, fam: SphFamily, rho_c_all, fn):
 def new_level(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c_all,
               dt) -> NewLevel:
     """Continuity (K32) with δ-SPH, ρ' = ρ + dt Dρ/Dt, h' by K37, with grains the voidage at
-    the new positions (W42: the conserved density is ερ), and P' from the EOS (W46, K35)."""
+    the new positions (W42: the conserved density is ερ), and P' from the EOS (W46, K35).
+
+    With the 'shared' pressure the intrinsic ρ is advanced by the mixture's continuity
+    (:func:`fpi.mixture_flux`, ``sph.mixture_density_rate``), the discrete adjoint of the
+    shared pressure force; otherwise ερ is advanced and ρ' = (ερ)'/ε'."""
     sp, f, fp = params.sph, state.fluid, state.fpi
     rho_c = f.rho if fp is None else fp.eps * f.rho
+    if fp is not None and phys.fpi_pressure is FpiPressure.SHARED:
+        return _mixture_level(phys, params, state, fam, dt)
     if fp is None:
         drho = pair_pass(phys, fam, rho_c_all,
                          lambda pr: sph.density_rate(phys, sp, pr.own(rho_c), pr))
@@ -359,6 +365,63 @@ def new_level(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c
                                         phys.voidage)
             eps = jnp.maximum(eps_raw, phys.eps_floor)
         rho_new = rho_c_new / eps
+    with jax.named_scope("sph.eos"):
+        p_new = eos.pressure(rho_new, sp.rho0, sp.c0, sp.gamma)
+    return NewLevel(rho=rho_new, h=h_new, p=p_new, eps=eps, eps_raw=eps_raw, rows=rows)
+
+
+def mixture_voidage(phys: Physics, state: State, fam: SphFamily):
+    """The grains' rows of the fluid at its present positions, the voidage there (unfloored,
+    and floored for the fluid equations) and the mixture's volume flux
+    J = εu + (1 − ε) v̄_grains (fpi.mixture_flux): what the 'shared' pressure's continuity
+    needs before the density is advanced."""
+    f, fp = state.fluid, state.fpi
+    with jax.named_scope("fpi.voidage"):
+        rows = fpi.grain_rows(kernels.get(phys.kernel), f.x, f.h, f.mass / (fp.eps * f.rho),
+                              fam.x_p, fam.idx_g, phys.n_fluid)
+        eps_raw = fpi.fluid_voidage(rows.w, fam.vol_p, rows.idx, rows.valid, phys.n_fluid,
+                                    phys.voidage)
+        eps = jnp.maximum(eps_raw, phys.eps_floor)
+        flux = fpi.mixture_flux(rows, eps, f.v, fam.v_p, fam.vol_p, phys.n_fluid)
+    return rows, eps_raw, eps, flux
+
+
+def mixture_density_rate(phys: Physics, params: Params, state: State, fam: SphFamily, eps,
+                         flux):
+    """Dρ_i/Dt of the intrinsic density by the mixture's continuity (W42 with the grains'
+    volume flux), (ρ_i/ε_i) Σ_j V_j (J_i − J_j)·∇_iW_ij, V_j = m_j/(ε_j ρ_j), plus δ-SPH on
+    ρ: the pair sums of sph.density_rate with the particles' velocities replaced by J (the
+    walls' and the structure's own velocities, ε = 1)."""
+    f = state.fluid
+    rho_c_all = _all(state, eps * f.rho, "rho")
+    rho_all = _all(state, f.rho, "rho")
+    mix = fam._replace(v=_cat(flux, fam.v[phys.n_fluid:]))
+    return pair_pass(phys, mix, rho_c_all,
+                     lambda pr: sph.density_rate(phys, params.sph, pr.own(f.rho / eps), pr,
+                                                 1.0, rho_all))
+
+
+def _mixture_level(phys: Physics, params: Params, state: State, fam: SphFamily,
+                   dt) -> NewLevel:
+    """The new level with the 'shared' pressure. The shared pressure force on fluid
+    particle i is −ε_i Σ_j V_i V_j (P_i + P_j) ∇_iW_ij and its grains get the rest, by
+    their part of the solid fraction, the weights of v̄ in J; the rate of the fluid's
+    internal energy Σ m_i (P_i/ρ_i²) Dρ_i/Dt under :func:`mixture_density_rate` is minus
+    the power of exactly these forces, pair by pair (tests/solver/test_stages.py checks it
+    to round-off). ρ = ερ/ε(x) with ε from the grains at the new positions (the other
+    modes) has no such partner: moving a fluid particle up the voidage gradient changes its
+    pressure without work, which pumped energy into a packed bed's pore fluid until it
+    blew up (docs/physics.md, Packed beds). ε' and J at the new positions come first, then
+    ρ' = ρ + dt Dρ/Dt, and h' follows the mixture density ερ (K37)."""
+    sp, f, fp = params.sph, state.fluid, state.fpi
+    rows, eps_raw, eps, flux = mixture_voidage(phys, state, fam)
+    rho_new = f.rho + dt * mixture_density_rate(phys, params, state, fam, eps, flux)
+    rho_c_old, rho_c_new = fp.eps * f.rho, eps * rho_new
+    h_new = f.h
+    if phys.variable_h:
+        with jax.named_scope("sph.variable_h"):
+            h_new = f.h + sph.smoothing_length_rate(f.h, rho_c_old, rho_c_new - rho_c_old)
+    rows = rows._replace(vol=gather(f.mass / rho_c_new, rows.idx, 0.0))
     with jax.named_scope("sph.eos"):
         p_new = eos.pressure(rho_new, sp.rho0, sp.c0, sp.gamma)
     return NewLevel(rho=rho_new, h=h_new, p=p_new, eps=eps, eps_raw=eps_raw, rows=rows)

@@ -227,3 +227,19 @@ def test_cell_share_goes_to_the_grains_by_their_part_of_the_solid_fraction():
     out = np.asarray(fpi.cell_share_on_grains(rows, force, jnp.asarray([2.0, 1.0]), 2))
     np.testing.assert_allclose(out, [[0.75, 2.5], [0.25, -0.5]], rtol=1e-12)
     np.testing.assert_allclose(out.sum(0), np.asarray(force).sum(0), rtol=1e-12)
+
+
+def test_mixture_flux_is_the_volume_flux_of_fluid_and_grains():
+    """J_f = ε_f u_f + (1 − ε_f) v̄_f with v̄ weighted by the grains' part of the solid
+    fraction (the weights of cell_share_on_grains). Fluid 0 sees grains A (V_p W = 2·0.3)
+    and B (1·0.2): v̄_0 = 0.75 v_A + 0.25 v_B = (0.75, 0.5); fluid 1 sees A only; fluid 2
+    no grain, J = u. With ε = (0.2, 0.5, 1): J_0 = 0.2 (1, 1) + 0.8 (0.75, 0.5) = (0.8, 0.6),
+    J_1 = 0.5 (0, 2) + 0.5 (1, 0) = (0.5, 1), J_2 = (3, −1)."""
+    rows = fpi.GrainRows(idx=jnp.asarray([[0, 1], [0, 3]]),
+                         valid=jnp.asarray([[True, True], [True, False]]),
+                         w=jnp.asarray([[0.3, 0.5], [0.2, 0.0]]), vol=None, dx=None, f=None)
+    u = jnp.asarray([[1.0, 1.0], [0.0, 2.0], [3.0, -1.0]])
+    v_p = jnp.asarray([[1.0, 0.0], [0.0, 2.0]])
+    out = np.asarray(fpi.mixture_flux(rows, jnp.asarray([0.2, 0.5, 1.0]), u, v_p,
+                                      jnp.asarray([2.0, 1.0]), 3))
+    np.testing.assert_allclose(out, [[0.8, 0.6], [0.5, 1.0], [3.0, -1.0]], rtol=1e-12)

@@ -340,11 +340,11 @@ def test_shared_pressure_splits_each_cell_and_creates_no_momentum():
     lift = np.asarray(out.fpi.force)            # at rest the drag is zero
     total = (m[:, None] * np.asarray(share)).sum(0)
     np.testing.assert_allclose(lift.sum(0), total, rtol=1e-12, atol=1e-12 * np.abs(total).max())
-    # against Archimedes: +9.2 % (the floor row's cells carry the wall's kernel-cut error,
+    # against Archimedes: +10.5 % (the floor row's cells carry the wall's kernel-cut error,
     # 0.4 g on ordinary water, and are 69 % solid); a figure, not a target
     vol = np.pi * np.asarray(scene.solid.radius) ** 2
     archimedes = 1000.0 * vol.sum() * -g[1]
-    assert lift.sum(0)[1] / archimedes == pytest.approx(1.092, abs=0.005)
+    assert lift.sum(0)[1] / archimedes == pytest.approx(1.105, abs=0.005)
 
 
 @x64
@@ -371,3 +371,71 @@ def test_sph_evaluation_in_row_blocks_equals_one_pass(name):
     for g, w in zip(leaves(got), leaves(want)):
         np.testing.assert_allclose(np.asarray(g), np.asarray(w), rtol=1e-12,
                                    atol=1e-12 * float(np.abs(np.asarray(w)).max()))
+
+
+def _pore_scene():
+    """A 16 × 16 block of water (Δx = 1 mm, h = 1.3 mm) around four grains (d = 1.6 mm),
+    free on every side, no gravity, the fluid's density perturbed and everything moving at
+    random: the 'shared' pressure with nothing else (no δ-SPH, viscosity, anti-clump)."""
+    from fpsi_jax.build import fluid_among_grains, lattice, sph_params
+    from fpsi_jax.model.params import FpiParams
+    from fpsi_jax.model.scene import FluidBlock
+    rng = np.random.default_rng(7)
+    dx, h = 0.001, 0.0013
+    x = lattice(0.0, 0.0, 0.016, 0.016, dx) + rng.uniform(-0.1, 0.1, (256, 2)) * dx
+    fluid = FluidBlock(x=x, v=rng.normal(0, 0.05, (256, 2)),
+                       rho=1000.0 * (1 + rng.uniform(-0.01, 0.01, 256)),
+                       mass=np.full(256, 1000.0 * dx * dx), h=np.full(256, h))
+    xg = np.array([[0.006, 0.006], [0.0077, 0.0065], [0.0068, 0.0081], [0.0105, 0.0095]])
+    fluid = fluid_among_grains(fluid, xg, np.full(4, 0.0008), "area")
+    grains = disc_block(xg, 0.0008, 2500.0, v=rng.normal(0, 0.05, (4, 2)))
+    grains.grain = np.ones(4, bool)
+    sp = dataclasses.replace(sph_params(1000.0, 10.0, 1e-3, dx, 0.01, 0.5, 0.1), mu=0.0)
+    return Scene(name="pores", params=Params(sph=sp, dem=DemParams(), fpi=FpiParams(),
+                                             gravity=(0.0, 0.0)),
+                 domain_lo=(-0.01, -0.01), domain_hi=(0.026, 0.026), v_max=1.0, fluid=fluid,
+                 solid=grains, t_end=1e-4,
+                 options={"fpi": True, "fpi_pressure": "shared", "delta_sph": False,
+                          "anticlump": False, "artificial_viscosity": False, "x64": True})
+
+
+@x64
+def test_shared_pressure_does_the_work_the_mixture_continuity_stores():
+    """The 'shared' pressure and the mixture's continuity are discrete adjoints: with
+    everything else switched off, the power of the pressure forces on the fluid and on the
+    grains plus the rate of the fluid's internal energy Σ m_i (P_i/ρ_i²) Dρ_i/Dt is zero to
+    round-off (energy is conserved by the semi-discrete coupling), whatever the voidage and
+    the velocities. Converting ερ with ε of the new positions (the other modes) breaks this
+    by the work of the voidage gradient: the check then fails by orders of magnitude."""
+    scene = _pore_scene()
+    phys, p, st = init_x64(scene)
+    fam = stages.sph_family(phys, st)
+    rho_c = stages._all(st, st.fpi.eps * st.fluid.rho, "rho")
+    lvl = stages.new_level(phys, p, st, fam, rho_c, 0.0)
+    _, eps, eps_f, flux = stages.mixture_voidage(phys, st, fam)
+    assert float(eps_f.min()) < 0.5                              # fluid among grains
+    drho = np.asarray(stages.mixture_density_rate(phys, p, st, fam, lvl.eps, flux))
+    moved, share = stages.fluid_momentum(phys, p, st, fam, rho_c, lvl)
+    f = st.fluid
+    m, rho, pres = np.asarray(f.mass), np.asarray(lvl.rho), np.asarray(lvl.p)
+    lift = fpi_cell_share(lvl, share, f.mass, fam, phys.n_fluid)
+    fluid_power = float(np.sum(m[:, None] * np.asarray(moved.fluid.acc) * np.asarray(f.v)))
+    grain_power = float(np.sum(lift * np.asarray(fam.v_p)))
+    stored = float(np.sum(m * pres / rho ** 2 * drho))
+    scale = float(np.sum(np.abs(m * pres / rho ** 2 * drho)))
+    assert abs(grain_power) > 1e-3 * scale                       # the grains take part
+    assert abs(fluid_power + grain_power + stored) < 1e-10 * scale
+    # the other modes' density, (ερ)' by plain continuity over ε' at the moved positions
+    # (a finite difference over 1e-7 s): the same forces leave 1.8 % of the scale unbalanced
+    dt, other = 1e-7, dataclasses.replace(phys, fpi_pressure="archimedes")
+    ahead = st.replace(fluid=f.replace(x=f.x + dt * f.v),
+                       solid=st.solid.replace(x=st.solid.x + dt * st.solid.v))
+    new = stages.new_level(other, p, ahead, stages.sph_family(other, ahead), rho_c, dt)
+    stored_other = float(np.sum(m * pres / rho ** 2 * (np.asarray(new.rho) - rho) / dt))
+    assert abs(fluid_power + grain_power + stored_other) > 0.01 * scale
+
+
+def fpi_cell_share(lvl, share, mass, fam, n_fluid):
+    from fpsi_jax.physics import fpi
+    return np.asarray(fpi.cell_share_on_grains(lvl.rows, share * mass[:, None], fam.vol_p,
+                                               n_fluid))
