@@ -1,9 +1,10 @@
-"""The two-phase dam break (W6.2.2) and the FPSI failure case I (W6.3) at the beds' own
-voidage (no floor) against the builders' floor of 0.8, with the 'archimedes' and 'shared'
-grain pressure: how far each run gets, and its fronts or broken bonds there.
+"""The two-phase dam break (W6.2.2) and the FPSI failure cases I and II (W6.3) at the beds'
+own voidage (no floor) against a floor of 0.8, for each fluid voidage ('area', 'mapped')
+and grain pressure ('archimedes', 'shared'): how far each run gets, and its fronts or
+broken bonds there. A variant is voidage:floor:pressure.
 
-    .venv/bin/python experiments/dense_bed_voidage.py [--t-end 0.2] [--floors 0 0.8]
-        [--pressures archimedes shared] [--out FILE]
+    .venv/bin/python experiments/dense_bed_voidage.py [--t-end 0.2]
+        [--variants area:0:shared mapped:0.8:archimedes] [--scenes ...] [--out FILE]
 
 writes experiments/results/dense_bed_voidage.csv; the floored 'archimedes' runs are the
 shipped ones (experiments/two_phase_dam_break.py, fpsi_failure.py: 6–10 min each).
@@ -33,18 +34,25 @@ def observe(state):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--t-end", type=float, default=0.2)
-    ap.add_argument("--floors", type=float, nargs="+", default=[0.0, 0.8])
-    ap.add_argument("--pressures", nargs="+", default=["archimedes", "shared"])
+    ap.add_argument("--variants", nargs="+",
+                    default=["area:0:shared", "mapped:0.8:archimedes", "mapped:0.8:shared"])
+    ap.add_argument("--scenes", nargs="+", default=["two_phase_dam_break", "fpsi_failure:I",
+                                                    "fpsi_failure:II"])
     ap.add_argument("--out", default="experiments/results/dense_bed_voidage.csv")
     a = ap.parse_args()
     rows = []
-    for name, extra in (("two_phase_dam_break", {}), ("fpsi_failure", {})):
-        for floor in a.floors:
-            for pressure in a.pressures:
-                kw = dict(extra, eps_floor=floor, t_end=a.t_end)
+    for spec in a.scenes:
+        name, _, variant = spec.partition(":")
+        extra = {"case": variant} if variant else {}
+        for v in a.variants:
+            voidage, floor, pressure = v.split(":")
+            floor = float(floor)
+            if True:
+                kw = dict(extra, voidage=voidage, eps_floor=floor, t_end=a.t_end)
                 scene = cases.build(name, **kw)
                 t0 = time.perf_counter()
-                row = dict(scene=name, eps_floor=floor, fpi_pressure=pressure)
+                row = dict(scene=spec, voidage=voidage, eps_floor=floor,
+                           fpi_pressure=pressure)
                 try:
                     res = simulate(scene, progress=False, observe=observe,
                                    fpi_pressure=pressure)
@@ -58,7 +66,7 @@ def main():
                 row["wall_s"] = time.perf_counter() - t0
                 rows.append(row)
                 print(row, flush=True)
-    keys = ["scene", "eps_floor", "fpi_pressure", "reached_s", "failed", "fluid_front_m",
+    keys = ["scene", "voidage", "eps_floor", "fpi_pressure", "reached_s", "failed", "fluid_front_m",
             "grain_front_m", "broken_bonds", "wall_s"]
     write_rows(a.out, rows, keys)
 

@@ -160,16 +160,17 @@ class Physics:
       fpi, n_grain         fluid–particle coupling of the grains (fpi.py): voidage in the
                            fluid equations (W42–43), pressure force (buoyancy), drag,
                            lubrication
-      voidage              what the fluid equations see: 'area' (ε = 1 − Σ V_p W, default)
-                           or 'mapped' (the equivalent 3D packing's; for grain beds); the
-                           drag closure sees the 3D one either way (fpi.py)
+      voidage              what the fluid equations see: 'area' (ε = 1 − Σ V_p W, default,
+                           the physical one of a 2D bed) or 'mapped' (the equivalent 3D
+                           packing's); the drag closure sees the 3D one either way (fpi.py)
       eps_floor            the fluid equations see max(ε, eps_floor) (the drag the true ε);
-                           builders of packed beds raise it (cases/two_phase_dam_break.py)
+                           0 (none) unless a user raises it
       drag                 the grains' drag: 'sphere' (W19–W23, default) or 'cylinder'
                            (a disc as a cylinder per unit length); see fpi.py
       fpi_pressure         the grains' buoyancy: 'archimedes' (ρ_f V_p |g|, default),
                            'gradient' (−V_p ∇P of the SPH pressure) or 'shared' (each fluid
-                           cell's pressure force, ε to its fluid, 1 − ε to its grains);
+                           cell's pressure force, ε to its fluid, 1 − ε to its grains, with
+                           the mixture's continuity: energy-conserving, for packed beds);
                            see fpi.py
       lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)
 

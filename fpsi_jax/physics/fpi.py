@@ -28,15 +28,21 @@ Choices the seeds leave open (docs/physics.md, docs/design.md):
   1 − ε_p of its weight). 'gradient' uses −V_p ∇P of the SPH pressure
   (:func:`pressure_force`), which adds the dynamic pressure of the flow. Either way the
   reaction goes to the fluid with the drag, by kernel weights (W47–W48).
-* Shared pressure (Physics.fpi_pressure = 'shared'). The SPH pressure force on fluid
-  particle f is the force on its whole cell V_f = m_f/(ε_f ρ_f), fluid and grains; with
-  'archimedes' and 'gradient' the fluid particle (mass ε_f ρ_f V_f) takes all of it and the
-  grains' buoyancy comes back to it as a reaction, so any error in it is amplified 1/ε_f in
-  acceleration (ten times in a packed 2D bed). 'shared' gives the fluid ε_f of it (its
-  acceleration is then −∇P/ρ, the fluid phase's) and the grains in its support the rest,
-  split by their part of its solid fraction (:func:`cell_share_on_grains`); only the drag
-  goes back to the fluid by kernel weights. The pressure force is shared, not created:
-  momentum is conserved to round-off.
+* Shared pressure (Physics.fpi_pressure = 'shared'; the packed beds' choice). The SPH
+  pressure force on fluid particle f is the force on its whole cell V_f = m_f/(ε_f ρ_f),
+  fluid and grains; with 'archimedes' and 'gradient' the fluid particle (mass ε_f ρ_f V_f)
+  takes all of it and the grains' buoyancy comes back to it as a reaction, so any error in
+  it is amplified 1/ε_f in acceleration (ten times in a packed 2D bed). 'shared' gives the
+  fluid ε_f of it (its acceleration is then −∇P/ρ, the fluid phase's) and the grains in its
+  support the rest, split by their part of its solid fraction (:func:`cell_share_on_grains`);
+  only the drag goes back to the fluid by kernel weights. The pressure force is shared, not
+  created: momentum is conserved to round-off. Its partner is the mixture's continuity:
+  the intrinsic density follows Dρ_i/Dt = (ρ_i/ε_i) Σ_j V_j (J_i − J_j)·∇_iW_ij with the
+  volume flux J = εu + (1 − ε)v̄ of fluid and grains (:func:`mixture_flux`, whose grain
+  weights are those of the shared force). The two are discrete adjoints, so the pressure's
+  work on fluid and grains equals the change of the fluid's internal energy pair by pair:
+  the coupling conserves energy, which is what keeps a packed bed's pore fluid at rest
+  (docs/physics.md, Packed beds).
 * V_p is the disc's area πR² per unit thickness, the same as the disc's mass ρ_p πR². Under
   the seed's law (Physics.drag = 'sphere') the force per unit mass, and with it the terminal
   velocity, is then exactly that of a sphere of diameter d.

@@ -510,12 +510,16 @@ def grain_forces(phys: Physics, params: Params, state: State, fam: SphFamily,
                                             phys.n_fluid)
         force = drag + jnp.where((wet > 0)[:, None], lift, 0.0)
     with jax.named_scope("fpi.reaction"):
-        wall = None if b is None else fpi.wall_share(kern, b.x, b.h, b.mass / b.rho, fam.x_p,
-                                                     fam.idx_g, phys.n_fluid)
-        # with the shared pressure the buoyancy is the grains' own part of the cells'
-        # pressure force, not a force on the fluid: only the drag goes back
-        handed = drag if solid_share is not None else force
-        acc = f.acc + fpi.reaction_acceleration(rows, handed, f.mass, wall)
+        if solid_share is not None:
+            # with the shared pressure the buoyancy is the grains' own part of the cells'
+            # pressure force, not a force on the fluid: only the drag goes back, by the
+            # weights of the fluid velocity ū it was computed from, so that it only ever
+            # dissipates (a wall share would let it pump energy near a wall)
+            acc = f.acc + fpi.reaction_acceleration(rows, drag, f.mass)
+        else:
+            wall = None if b is None else fpi.wall_share(kern, b.x, b.h, b.mass / b.rho,
+                                                         fam.x_p, fam.idx_g, phys.n_fluid)
+            acc = f.acc + fpi.reaction_acceleration(rows, force, f.mass, wall)
     return state.replace(fluid=f.replace(acc=acc),
                          fpi=fp.replace(eps=lvl.eps, eps_p=eps_p, u_f=u_f, wet=wet,
                                         force=force))
