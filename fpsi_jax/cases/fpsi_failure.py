@@ -6,6 +6,7 @@ import numpy as np
 
 from ..build import check_positive, clamp, disc_block, merge, square_packing, touching_pairs
 from ..model.errors import ParameterError
+from ..model.options import FpiPressure, choose
 from ..model.params import BondParams, FpiParams, Params
 from ..model.scene import Scene
 from .registry import scene
@@ -19,8 +20,8 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
                  rho_structure=1100.0, a=0.05, water_height=0.1, tank_length=0.2,
                  tank_height=0.15, d=0.0024, rho_grain=2500.0, grain_mass=0.2, depth=0.1,
                  dx=0.0024, dx_boundary=0.0015, h0=0.003, mu=1.0e-3, c0=None, kn=1.021e9,
-                 ks=1.024e7, friction=0.3, beta_n=0.3, voidage="mapped",
-                 r_clump=0.01, eps_xsph=0.5, alpha_av=0.02, delta=0.1, eps_floor=0.8,
+                 ks=1.024e7, friction=0.3, beta_n=0.3, voidage="area", fpi_pressure="shared",
+                 r_clump=0.01, eps_xsph=0.5, alpha_av=0.02, delta=0.1, eps_floor=0.0,
                  t_end=0.2) -> Scene:
     """W6.3: the two-phase dam break with the gate replaced by a bonded structure fixed at
     its foot (ρ 1100), bond tensile strength 4e4 Pa (``case`` 'I') or 2e4 Pa ('II'),
@@ -40,6 +41,7 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
     tau_c = sigma_c if tau_c is None else tau_c
     check_positive(sigma_c=sigma_c, tau_c=tau_c, thickness=thickness,
                    d_structure=d_structure, rho_structure=rho_structure, ks=ks)
+    choose(FpiPressure, "fpi_pressure", fpi_pressure)
     parts = two_phase_parts(
         a, water_height, tank_length, tank_height, d, rho_grain, grain_mass, depth, dx,
         dx_boundary, h0, mu, c0, kn, ks, friction, beta_n, voidage, r_clump, eps_xsph,
@@ -63,5 +65,5 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
         t_end=t_end, open_sides=("top",),
         options={"fpi": True, "fsi": "extrapolated", "voidage": voidage,
                  "boundary_pressure": "extrapolated", "artificial_viscosity": True,
-                 "delta_sph": True, "eps_floor": eps_floor},
+                 "delta_sph": True, "eps_floor": eps_floor, "fpi_pressure": fpi_pressure},
         builder_kwargs=dict(sigma_c=sigma_c, tau_c=tau_c, c0=parts.c0, n_grain=parts.n_grain))

@@ -88,14 +88,15 @@ def separate(x, d, width, tol=1e-9, max_sweeps=1000):
 
 
 @scene
-def grain_bed(*, width=0.0504, water_height=0.1, d=0.0024, layers=4, packing="hex", seed=0,
+def grain_bed(*, width=0.0504, water_height=0.1008, d=0.0024, layers=4, packing="hex", seed=0,
               rho_grain=2500.0, dx=0.0024, dx_boundary=0.0015, h0=0.003, mu=1.0e-3,
               c0=None, kn=1.021e9, ks=1.024e7, friction=0.3, beta_n=0.3,
               voidage="area", eps_floor=0.0, fpi_pressure="shared", drag="sphere",
               alpha_av=0.02, delta=0.1, t_end=2.0) -> Scene:
     """A bed of grains (d 2.4 mm, ρ 2500: the two-phase dam break's) on the floor of a
     closed tank ``width`` wide (21 d: the long hexagonal rows touch both walls, so the bed
-    cannot slide) under ``water_height`` of still water, started hydrostatic.
+    cannot slide) under ``water_height`` of still water (42 rows of 2.4 mm), started
+    hydrostatic.
 
     packing  'hex'    ``layers`` hexagonal rows of touching discs (area voidage 0.093)
              'random' as many discs, dropped at random and settled dry (:func:`random_bed`,
@@ -122,11 +123,12 @@ def grain_bed(*, width=0.0504, water_height=0.1, d=0.0024, layers=4, packing="he
         raise ParameterError(f"layers = {layers}: the bed is higher than the water")
     grains: SolidBlock = disc_block(xg, d / 2, rho_grain)
     grains.grain = np.ones(grains.n, bool)
-    v_max = dam_speed(water_height)
-    c0 = sound_speed(v_max) if c0 is None else c0
     dx = fit_spacing(width, dx)
+    surface = round(water_height / dx) * dx              # the water the lattice holds
+    surface = water_height if abs(surface - water_height) < 1e-9 * water_height else surface
+    v_max = dam_speed(surface)
+    c0 = sound_speed(v_max) if c0 is None else c0
     sp = sph_params(1000.0, c0, mu, dx, 0.01, 0.5, delta, alpha=alpha_av)
-    surface = round(water_height / dx) * dx
     fluid = hydrostatic_fluid(lattice(0.0, 0.0, width, water_height, dx), 1000.0, c0,
                               sp.gamma, surface, dx=dx, h=h0)
     fluid = fluid_among_grains(fluid, grains.x, grains.radius, voidage, eps_floor)

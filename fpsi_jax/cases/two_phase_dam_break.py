@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from ..build import (Tank, check_positive, dam_speed, disc_block, hex_packing, hydrostatic_fluid,
                      lattice, merge, move, sound_speed, sph_params, square_packing, tank)
 from ..model.errors import ParameterError
+from ..model.options import FpiPressure, choose
 from ..model.params import DemParams, FpiParams, Params, SphParams
 from ..model.scene import FluidBlock, Scene, SolidBlock
 from .grains import check_voidage, fit_spacing, fluid_among_grains
@@ -77,8 +78,8 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
                         d=0.0024, rho_grain=2500.0, grain_mass=0.2, depth=0.1, dx=0.0024,
                         dx_boundary=0.0015, h0=0.003, gate_speed=0.68, gate_columns=4,
                         mu=1.0e-3, c0=None, kn=1.021e9, ks=1.024e7, friction=0.3,
-                        beta_n=0.3, voidage="mapped", r_clump=0.01,
-                        eps_xsph=0.5, alpha_av=0.02, delta=0.1, eps_floor=0.8,
+                        beta_n=0.3, voidage="area", fpi_pressure="shared", r_clump=0.01,
+                        eps_xsph=0.5, alpha_av=0.02, delta=0.1, eps_floor=0.0,
                         t_end=0.2) -> Scene:
     """W6.2.2 after Sun, Sakai & Yamada (2013): a water column ``a`` = 0.05 m wide with a bed
     of grains (d 2.4 mm, ρ 2500) at its foot, behind a gate lifted at ``gate_speed`` =
@@ -105,6 +106,7 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
     pore fluid heavier than the pores hold, so the bed's pressure gradient is steeper than
     hydrostatic."""
     check_positive(gate_speed=gate_speed, gate_columns=gate_columns)
+    choose(FpiPressure, "fpi_pressure", fpi_pressure)
     parts = two_phase_parts(
         a, water_height, tank_length, tank_height, d, rho_grain, grain_mass, depth, dx,
         dx_boundary, h0, mu, c0, kn, ks, friction, beta_n, voidage, r_clump, eps_xsph,
@@ -126,5 +128,5 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
         walls=parts.tank.walls, t_end=t_end, open_sides=("top",),
         options={"fpi": True, "fsi": "extrapolated", "voidage": voidage,
                  "boundary_pressure": "extrapolated", "artificial_viscosity": True,
-                 "delta_sph": True, "eps_floor": eps_floor},
+                 "delta_sph": True, "eps_floor": eps_floor, "fpi_pressure": fpi_pressure},
         builder_kwargs=dict(c0=parts.c0, n_grain=parts.n_grain))
