@@ -33,8 +33,8 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
     stiffness / bond area (k̄ = k/d for the 2R̄·1 m slab), shear strength τ̄_c = σ̄_c. Static
     bending at the foot under the water alone is 6M/e² with M = ρ_w g H³/6: 9.8e4 Pa for
     the defaults, above both strengths, so both walls crack from the foot once the load
-    arrives; the weaker one earlier and further. The bed's fluid voidage is floored at
-    ``eps_floor`` = 0.8 as in ``two_phase_dam_break``."""
+    arrives; the weaker one earlier and further. The bed is the two-phase dam break's, at its
+    own voidage with the shared pressure (``two_phase_dam_break``)."""
     if case not in FPSI_CASES and sigma_c is None:
         raise ParameterError(f"case must be one of {tuple(FPSI_CASES)}, got {case!r}")
     sigma_c = FPSI_CASES[case] if sigma_c is None else sigma_c

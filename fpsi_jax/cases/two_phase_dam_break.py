@@ -99,12 +99,10 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
     'extrapolated' coupling) and in contact with the grains. δ-SPH (on the intrinsic
     density) and α = 0.02 artificial viscosity as in the dam break.
 
-    The packed bed: the fluid sees the 3D-mapped voidage (``voidage`` 'mapped', 0.26-0.3 in
-    the bed), floored at ``eps_floor`` = 0.8 in the fluid equations (the drag sees the
-    unfloored value). The light pore fluid near the left wall goes unstable within 0.02 s
-    without the floor, and by 0.035–0.11 s with a floor of 0.5. The floor makes the bed's
-    pore fluid heavier than the pores hold, so the bed's pressure gradient is steeper than
-    hydrostatic."""
+    The packed bed: the fluid sees the bed's own area voidage (``voidage`` 'area', about 0.1
+    in the bed; ``eps_floor`` 0: no floor) and the grains their part of the cells' pressure
+    forces with the mixture's continuity (``fpi_pressure`` 'shared', fpi.py), which keeps
+    the light pore fluid stable (docs/physics.md, Packed beds)."""
     check_positive(gate_speed=gate_speed, gate_columns=gate_columns)
     choose(FpiPressure, "fpi_pressure", fpi_pressure)
     parts = two_phase_parts(
