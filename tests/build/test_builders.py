@@ -60,6 +60,20 @@ def test_tank_layers_cover_the_kernel_and_walls_follow_the_outline():
     assert build.tank(0.6, 0.3, 0.005, 0.00625, 1000.0).walls is None
 
 
+def test_tank_spacing_is_fitted_so_both_walls_stand_half_a_spacing_out():
+    """0.05 m at 1.5 mm is 33.3 spacings: the tank lays 33 of 0.05/33 m, so the innermost
+    particles of the left and the right wall are dxb/2 outside the box on both sides (on
+    a 1.5 mm lattice from the left the right wall stood 1 mm out, against 0.75 mm)."""
+    t = build.tank(0.05, 0.1, 0.0015, 0.003, 1000.0)
+    dxb = 0.05 / 33
+    x = t.boundary.x[:, 0]
+    assert x[x < 0].max() == pytest.approx(-dxb / 2, rel=1e-9)
+    assert x[x > 0.05].min() == pytest.approx(0.05 + dxb / 2, rel=1e-9)
+    assert np.allclose(t.boundary.mass, 1000.0 * dxb ** 2)
+    with pytest.raises(ParameterError, match="whole number"):
+        build.tank_walls(0.05, 0.1, 0.0015, 4)
+
+
 def test_bonded_rectangle_mass_bonds_and_stiffness():
     d, E, nu, rho = 0.0025, 1.0e7, 0.4, 1100.0
     s = build.bonded_rectangle(0.0, 0.0, 0.01, 0.1, d, E, nu, rho, plane_strain=True)
