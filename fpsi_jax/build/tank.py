@@ -62,9 +62,9 @@ class Tank:
 
 def tank(width, height, dx_boundary, h, rho0, *, dem_walls=False, lid=False) -> Tank:
     """A tank of fixed boundary particles on a ``dx_boundary`` lattice (fitted to the width,
-    :func:`fit_spacing`, so that both side walls stand dx/2 outside the box), deep enough to cover
-    the kernel support 2h (:func:`boundary_layers`), with mass ρ0 Δx_b² and P = 0; with
-    ``dem_walls`` also DEM line walls on the floor and the side walls (and the lid)."""
+    :func:`fit_spacing`, so that both side walls stand dx/2 outside the box), deep enough
+    to cover the kernel support 2h (:func:`boundary_layers`), with mass ρ0 Δx_b² and P = 0;
+    with ``dem_walls`` also DEM line walls on the floor and the side walls (and the lid)."""
     check_positive(width=width, height=height, dx_boundary=dx_boundary, h=h, rho0=rho0)
     dx_boundary = fit_spacing(width, dx_boundary)
     layers = boundary_layers(h, dx_boundary)

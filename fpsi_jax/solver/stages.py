@@ -336,7 +336,7 @@ def new_level(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c
     the new positions (W42: the conserved density is ερ), and P' from the EOS (W46, K35).
 
     With the 'shared' pressure the intrinsic ρ is advanced by the mixture's continuity
-    (:func:`fpi.mixture_flux`, ``sph.mixture_density_rate``), the discrete adjoint of the
+    (:func:`fpi.mixture_flux`, :func:`mixture_density_rate`), the discrete adjoint of the
     shared pressure force; otherwise ερ is advanced and ρ' = (ερ)'/ε'."""
     sp, f, fp = params.sph, state.fluid, state.fpi
     rho_c = f.rho if fp is None else fp.eps * f.rho
