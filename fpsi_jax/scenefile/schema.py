@@ -252,7 +252,8 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
       Key("xsph", "bool", "", True, "XSPH velocity smoothing"),
       Key("variable_h", "bool", "", True, "variable smoothing length"),
       Key("lubrication", "bool", "", True, "lubrication between grains in fluid (W24)"),
-      Key("fpi_pressure", "str", "", "archimedes", "pressure force on grains",
+      Key("fpi_pressure", "str", "", "archimedes",
+          "pressure force on grains ('shared': energy-conserving, for packed beds)",
           choices=("archimedes", "gradient", "shared")),
       Key("rho_tolerance", "float", "", 0.3, "stop when |ρ/ρ0 − 1| exceeds this", lo=0.0,
           lo_open=True))
