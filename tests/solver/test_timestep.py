@@ -50,9 +50,10 @@ def test_fluid_coupled_structure_keeps_physics_md_step_coefficients():
 
 
 def test_wall_range_from_the_scene_and_its_time_step_bound():
-    """r0 = 0.8 min(√(m_b/ρ0), Δp); the derived step respects Δt ≤ r0/(c0 √β)."""
+    """r0 = 0.8 min(√(m_b/ρ0), Δp); the derived step respects Δt ≤ r0/(c0 √β). The tank's
+    boundary spacing is 5 mm fitted to its 0.584 m: 0.584/117 m."""
     sc = cases.build("dam_break", dx=0.01, dx_boundary=0.005)
-    np.testing.assert_allclose(sc.wall_range(), 0.8 * 0.005, rtol=1e-12)
+    np.testing.assert_allclose(sc.wall_range(), 0.8 * 0.584 / 117, rtol=1e-12)
     assert Physics.for_scene(sc).wall_range == sc.wall_range()
     sc = cases.build("dam_break", dx=0.01)
     np.testing.assert_allclose(sc.wall_range(), 0.8 * 0.01, rtol=1e-12)
