@@ -74,6 +74,23 @@ def _norm(v, eps=1e-30):
     return jnp.sqrt(jnp.sum(v * v, axis=-1) + eps)
 
 
+def to_fluid(values, idx, valid, n_fluid):
+    """Σ over the grain rows of ``values`` (n_g, K) or (n_g, K, c) into their fluid
+    neighbours ``idx`` (masked by ``valid``): a scatter-add giving (n_f,) or (n_f, c)."""
+    target = jnp.where(valid, idx, n_fluid).reshape(-1)
+    tail = values.shape[2:]
+    out = jnp.zeros((n_fluid + 1,) + tail, values.dtype).at[target].add(
+        values.reshape((-1,) + tail))
+    return out[:n_fluid]
+
+
+def solid_fraction(rows, vol_p, n_fluid):
+    """1 − ε₂ at each fluid particle, Σ_p V_p W_pf (discrete W2), and each grain row's
+    terms V_p W_pf (zero where not valid): (n_f,), (n_g, K)."""
+    share = jnp.where(rows.valid, rows.w * vol_p[:, None], 0.0)
+    return to_fluid(share, rows.idx, rows.valid, n_fluid), share
+
+
 def voidage_3d(eps2d):
     """Area voidage of a disc packing → the equivalent 3D voidage,
     ε₃ = 1 − 2/√(π√3) (1 − ε₂)^(3/2) (hexagonal discs → face-centred spheres)."""
@@ -84,10 +101,8 @@ def fluid_voidage(w, vol_p, idx, valid, n_fluid, mode=Voidage.AREA):
     """ε_f = 1 − Σ_p V_p W(x_f − x_p, h_f) (discrete W2), gathered from the grain rows: each
     grain adds V_p W to its fluid neighbours. ``w`` (n_g, K) kernel values, ``vol_p`` (n_g,).
     The area voidage clipped to [EPS_MIN, 1], mapped to 3D when ``mode`` is 'mapped'."""
-    share = jnp.where(valid, w * vol_p[:, None], 0.0)
-    target = jnp.where(valid, idx, n_fluid)
-    solid = jnp.zeros(n_fluid + 1, w.dtype).at[target.reshape(-1)].add(share.reshape(-1))
-    eps = jnp.clip(1.0 - solid[:n_fluid], EPS_MIN, 1.0)
+    solid = to_fluid(jnp.where(valid, w * vol_p[:, None], 0.0), idx, valid, n_fluid)
+    eps = jnp.clip(1.0 - solid, EPS_MIN, 1.0)
     return voidage_3d(eps) if mode == Voidage.MAPPED else eps
 
 
@@ -98,11 +113,8 @@ def cell_share_on_grains(rows, force_f, vol_p, n_fluid):
     V_p W_pf / Σ_p V_p W_pf. Every fluid particle with ε < 1 has a grain in its support
     (its solid fraction is that sum), so Σ over the grains equals Σ_f force_f to round-off:
     the cell's pressure force is shared, not created. Returns (n_g, 2)."""
-    share = jnp.where(rows.valid, rows.w * vol_p[:, None], 0.0)
-    target = jnp.where(rows.valid, rows.idx, n_fluid)
-    solid = jnp.zeros(n_fluid + 1, share.dtype).at[target.reshape(-1)].add(
-        share.reshape(-1))
-    frac = share / jnp.where(solid > 0, solid, 1.0)[target]
+    solid, share = solid_fraction(rows, vol_p, n_fluid)
+    frac = share / gather(jnp.where(solid > 0, solid, 1.0), rows.idx)
     return jnp.sum(frac[..., None] * gather(force_f, rows.idx, 0.0), axis=1)
 
 
@@ -111,12 +123,9 @@ def mixture_flux(rows, eps_f, u_f, v_p, vol_p, n_fluid):
     the grains' velocity weighted by their part of f's solid fraction, V_p W_pf / Σ_p V_p W_pf
     (the same weights as :func:`cell_share_on_grains`, whose force is this flux's
     conjugate). A fluid particle without grains in its support has J = u. (n_f, 2)."""
-    share = jnp.where(rows.valid, rows.w * vol_p[:, None], 0.0)
-    target = jnp.where(rows.valid, rows.idx, n_fluid).reshape(-1)
-    solid = jnp.zeros(n_fluid + 1, share.dtype).at[target].add(share.reshape(-1))
-    mom = jnp.zeros((n_fluid + 1, 2), share.dtype).at[target].add(
-        (share[..., None] * v_p[:, None, :]).reshape(-1, 2))
-    v_bar = mom[:n_fluid] / jnp.where(solid > 0, solid, 1.0)[:n_fluid, None]
+    solid, share = solid_fraction(rows, vol_p, n_fluid)
+    mom = to_fluid(share[..., None] * v_p[:, None, :], rows.idx, rows.valid, n_fluid)
+    v_bar = mom / jnp.where(solid > 0, solid, 1.0)[:, None]
     return eps_f[:, None] * u_f + (1.0 - eps_f)[:, None] * v_bar
 
 
@@ -203,11 +212,7 @@ def reaction_on_fluid(force_p, weights, idx, n_fluid):
     """Hand −F_p to the fluid neighbours by ``weights`` (W47–48): a scatter-add into (n_f, 2);
     Σ over the fluid equals −Σ_p F_p to round-off wherever every grain has a fluid
     neighbour."""
-    share = -weights[..., None] * force_p[:, None, :]
-    target = jnp.where(weights > 0, idx, n_fluid)
-    out = jnp.zeros((n_fluid + 1, 2), force_p.dtype).at[target.reshape(-1)].add(
-        share.reshape(-1, 2))
-    return out[:n_fluid]
+    return to_fluid(-weights[..., None] * force_p[:, None, :], idx, weights > 0, n_fluid)
 
 
 # --- the coupling, on the grain rows of the SPH list --------------------------------------
