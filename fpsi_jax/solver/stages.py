@@ -339,9 +339,9 @@ def new_level(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c
     (:func:`fpi.mixture_flux`, :func:`mixture_density_rate`), the discrete adjoint of the
     shared pressure force; otherwise ερ is advanced and ρ' = (ερ)'/ε'."""
     sp, f, fp = params.sph, state.fluid, state.fpi
-    rho_c = f.rho if fp is None else fp.eps * f.rho
     if fp is not None and phys.fpi_pressure is FpiPressure.SHARED:
         return _mixture_level(phys, params, state, fam, dt)
+    rho_c = f.rho if fp is None else fp.eps * f.rho
     if fp is None:
         drho = pair_pass(phys, fam, rho_c_all,
                          lambda pr: sph.density_rate(phys, sp, pr.own(rho_c), pr))
@@ -415,7 +415,7 @@ def _mixture_level(phys: Physics, params: Params, state: State, fam: SphFamily,
     ρ' = ρ + dt Dρ/Dt, and h' follows the intrinsic density (K37 with ρ): the spacing of
     the fluid's particles, which does not change when one moves among grains. (Following
     ερ, a particle moving from ε = 0.16 to 0.22 shrank its h by 15 %, and a packed bed under
-    still water blew up after 1.1–1.7 s.)"""
+    still water blew up after 0.2–1.7 s.)"""
     sp, f = params.sph, state.fluid
     rows, eps_raw, eps, flux = mixture_voidage(phys, state, fam)
     drho = mixture_density_rate(phys, params, state, fam, eps, flux)
