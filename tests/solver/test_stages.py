@@ -18,7 +18,7 @@ from fpsi_jax.build import disc_block
 from fpsi_jax.model.config import Physics
 from fpsi_jax.model.params import BondParams, DemParams, Params
 from fpsi_jax.model.scene import BondBlock, Scene, WallBlock
-from fpsi_jax.physics import dem
+from fpsi_jax.physics import dem, fpi
 from fpsi_jax.physics.pairs import MIN_BLOCKS
 from fpsi_jax.run.driver import setup
 from fpsi_jax.solver import forward, init, stages
@@ -406,19 +406,20 @@ def test_shared_pressure_does_the_work_the_mixture_continuity_stores():
     grains plus the rate of the fluid's internal energy Σ m_i (P_i/ρ_i²) Dρ_i/Dt is zero to
     round-off (energy is conserved by the semi-discrete coupling), whatever the voidage and
     the velocities. Converting ερ with ε of the new positions (the other modes) breaks this
-    by the work of the voidage gradient: the check then fails by orders of magnitude."""
+    by the work of the voidage gradient: 1.8 % of the terms' scale."""
     scene = _pore_scene()
     phys, p, st = init_x64(scene)
     fam = stages.sph_family(phys, st)
     rho_c = stages._all(st, st.fpi.eps * st.fluid.rho, "rho")
     lvl = stages.new_level(phys, p, st, fam, rho_c, 0.0)
-    _, eps, eps_f, flux = stages.mixture_voidage(phys, st, fam)
-    assert float(eps_f.min()) < 0.5                              # fluid among grains
+    _, _, eps, flux = stages.mixture_voidage(phys, st, fam)
+    assert float(eps.min()) < 0.5                              # fluid among grains
     drho = np.asarray(stages.mixture_density_rate(phys, p, st, fam, lvl.eps, flux))
     moved, share = stages.fluid_momentum(phys, p, st, fam, rho_c, lvl)
     f = st.fluid
     m, rho, pres = np.asarray(f.mass), np.asarray(lvl.rho), np.asarray(lvl.p)
-    lift = fpi_cell_share(lvl, share, f.mass, fam, phys.n_fluid)
+    lift = np.asarray(fpi.cell_share_on_grains(lvl.rows, share * f.mass[:, None], fam.vol_p,
+                                               phys.n_fluid))
     fluid_power = float(np.sum(m[:, None] * np.asarray(moved.fluid.acc) * np.asarray(f.v)))
     grain_power = float(np.sum(lift * np.asarray(fam.v_p)))
     stored = float(np.sum(m * pres / rho ** 2 * drho))
@@ -434,8 +435,3 @@ def test_shared_pressure_does_the_work_the_mixture_continuity_stores():
     stored_other = float(np.sum(m * pres / rho ** 2 * (np.asarray(new.rho) - rho) / dt))
     assert abs(fluid_power + grain_power + stored_other) > 0.01 * scale
 
-
-def fpi_cell_share(lvl, share, mass, fam, n_fluid):
-    from fpsi_jax.physics import fpi
-    return np.asarray(fpi.cell_share_on_grains(lvl.rows, share * mass[:, None], fam.vol_p,
-                                               n_fluid))
