@@ -181,8 +181,10 @@ def sedimentation_case(quick: bool = False, overrides: dict | None = None):
     ref = load_csv(SEDIMENTATION_REFERENCE)
     ref = ref[np.argsort(ref[:, 0])]
     rms, v_ours, v_ref = sedimentation_metrics(t, x[:, 1], ref, scene.builder_kwargs["y0"])
+    mid = (t >= 0.2) & (t <= 0.6)
     info = _info(scene, res, quick, eps_p_mean=float(np.mean(e)), drag=str(phys_drag(scene)),
-                 fluid_spacing_over_d=scene.params.sph.dp / scene.builder_kwargs["d"])
+                 fluid_spacing_over_d=scene.params.sph.dp / scene.builder_kwargs["d"],
+                 fluid_velocity_at_grain=float(np.mean(u[mid, 1])) if mid.any() else None)
     out = [Record("sedimentation", "RMS(y - y_ref) / fall height", rms, 0.0, rms, 0.03,
                   rms < 0.03, wall, info)]
     if not quick:
