@@ -18,15 +18,15 @@ run: $(STAMP)
 
 # The default test suite (long validation runs are marked slow and run in experiments/).
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --maxprocesses 4
 
 test-slow: $(STAMP)
-	$(PY) -m pytest -q -m slow
+	$(PY) -m pytest -q -m slow -n auto --maxprocesses 4
 
 validate: $(STAMP)
 	$(VENV)/bin/fpsi validate
 
-# Issue 6's calibrations (cantilever: ~10 min; elastic gate, coarse: ~30 min).
+# The ready-made calibrations (cantilever: ~10 min; elastic gate, coarse: ~30 min).
 calibrate: $(STAMP)
 	$(PY) experiments/calibrate_cantilever.py
 	$(PY) experiments/calibrate_gate.py
