@@ -6,8 +6,8 @@ For each setting: `grain_bed_at_rest`'s four figures for both packings (pore pre
 largest fluid speed in the last quarter, largest grain speed there, floor load against the
 bed's buoyant weight; `grain_bed.bed_metrics`) and, as the control, the same tank of water
 without grains (`hydrostatic_tank` 0.0504 × 0.1008 m at Δx 2.4 mm): its largest speed in the
-last quarter and in each tenth of the run, relative to √(gH). A bed's fluid cannot be
-stiller than its tank's water.
+last quarter and in each tenth of the run, relative to √(gH): how still these numerics
+keep water alone, against which the bed's fluid is read.
 
     .venv/bin/python experiments/grain_bed_numerics.py [--t-end 2] [--jobs 2]
 
@@ -34,7 +34,7 @@ SETTINGS = [
 ]
 
 _BED = """
-import json, sys, numpy as np
+import json, sys
 from fpsi_jax import cases
 from fpsi_jax.cases.grain_bed import bed_observer, bed_metrics
 from fpsi_jax.run.driver import simulate
