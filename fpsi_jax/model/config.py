@@ -33,6 +33,10 @@ class NeighborConfig:
     origin, box   the domain rectangle: positions are shifted by ``origin`` into [0, box)
     row_block     rows per block of the rebuild's candidate pass (0: all rows at once;
                   ``Physics.pair_block``)
+    n_columns     only particles below this index are listed as neighbours (0: all). The SPH
+                  family puts the grains last and no SPH sum reads a grain column (the grains'
+                  own rows carry their coupling), so a scene with grains lists none: in a
+                  packed bed a fluid row's ~30 grain entries would double its width
     """
 
     r_cut: float
@@ -42,6 +46,7 @@ class NeighborConfig:
     capacity_multiplier: float = 1.25
     extra_capacity: int = 0
     row_block: int = 0
+    n_columns: int = 0
 
     @property
     def list_radius(self) -> float:
@@ -126,6 +131,17 @@ def check_options(opts: dict) -> dict:
     return out
 
 
+def moving_discs(solid) -> tuple:
+    """The discs free at the start, when a quarter or more of them are fixed (else (): all
+    rows; Physics.moving_discs). Below that the rows saved do not pay for the gathers."""
+    if solid is None:
+        return ()
+    free = ~np.asarray(solid.fixed, bool)
+    if not free.any() or free.sum() > 0.75 * free.size:
+        return ()
+    return tuple(int(i) for i in np.flatnonzero(free))
+
+
 @dataclass(frozen=True)
 class Physics:
     """Static configuration: hashable, closed over by the compiled step.
@@ -153,6 +169,11 @@ class Physics:
       dem_neighbors        the contact family's list (cut-off 2 R_max), None without discs
       bond_section         'slab' (2D, A = 2R̄t, I = (2/3)tR̄³) or 'circular'
                            (A = πR̄², I = πR̄⁴/4; K6.1's Itasca beam)
+      moving_discs         indices of the discs free at the start when a quarter or more are
+                           fixed (clamped or kinematic), else () for all: the contact, wall
+                           and lubrication sums of a DEM step run over these rows only
+                           (a fixed disc's force is never read; a disc parked later keeps
+                           its row)
 
     Couplings:
       fsi, n_structure     fluid–structure method (options.FsiMethod) and structure disc count
@@ -209,6 +230,7 @@ class Physics:
     n_walls: int = 0
     dem_neighbors: NeighborConfig | None = None
     bond_section: BondSection = BondSection.SLAB
+    moving_discs: tuple = ()
     fsi: FsiMethod | None = None
     n_structure: int = 0
     dem_substeps: int = 1
@@ -292,9 +314,13 @@ class Physics:
         if scene.fluid is not None:
             h_all = [b.h for b in (scene.fluid, scene.boundary) if b is not None]
             h_max = float(max(np.max(h) for h in h_all)) * h_margin
+            n_columns = 0
+            if n_grain:     # fluid, boundary, structure: the rows the SPH sums read
+                n_columns = sum(b.n for b in (scene.fluid, scene.boundary) if b is not None)
+                n_columns += n_structure
             nb = NeighborConfig(r_cut=KERNEL_SUPPORT * h_max, skin=skin_factor * h_max / h_margin,
                                 origin=lo, box=box, capacity_multiplier=float(cap),
-                                row_block=int(opts["pair_block"]))
+                                row_block=int(opts["pair_block"]), n_columns=n_columns)
         if scene.solid is not None:
             r_max = float(np.max(scene.solid.radius))
             reach = 1.0
@@ -317,7 +343,8 @@ class Physics:
                    n_solid=scene.solid.n if scene.solid else 0,
                    n_bonds=scene.bonds.n if scene.bonds else 0,
                    n_walls=scene.walls.n if scene.walls else 0,
-                   dem_neighbors=dem_nb, n_structure=n_structure, n_grain=n_grain, **opts)
+                   dem_neighbors=dem_nb, n_structure=n_structure, n_grain=n_grain,
+                   moving_discs=moving_discs(scene.solid), **opts)
 
     @property
     def has_fluid(self) -> bool:

@@ -90,17 +90,24 @@ def _contact_sum(dp, nrm, delta, ra, rb, dv, omega_a, omega_b, m, shear, dt):
     return -jnp.stack([fx, fy], axis=-1), -tq, hist, delta
 
 
-def disc_contacts(dp, x, v, omega, radius, mass, fixed, idx, shear, dt):
+def disc_contacts(dp, x, v, omega, radius, mass, fixed, idx, shear, dt, rows=None):
     """Disc–disc contacts over the Dense list ``idx`` (n × K, padding index n).
 
-    Returns (force (n, 2), torque (n,), new shear history (n, K), overlap (n, K))."""
+    ``rows`` (r,): compute only these discs' contacts (``idx`` and ``shear`` are then their
+    rows, (r, K)); a disc's row holds the whole force on it, so the other discs' rows can
+    be left out when nothing reads their force (kinematic discs).
+
+    Returns (force (n, 2), torque (n,), new shear history (n, K), overlap (n, K)), with r
+    rows when ``rows`` is given."""
     n = x.shape[0]
     valid = idx < n
     j = jnp.where(valid, idx, 0)
-    m = reduced_mass(mass[:, None], mass[j], fixed[:, None], fixed[j])
-    nrm, delta = pair_geometry(x[j] - x[:, None, :], valid, radius[:, None], radius[j])
-    return _contact_sum(dp, nrm, delta, radius[:, None], radius[j], v[j] - v[:, None, :],
-                        omega[:, None], omega[j], m, shear, dt)
+    own = (lambda a: a) if rows is None else (lambda a: a[rows])
+    m = reduced_mass(own(mass)[:, None], mass[j], own(fixed)[:, None], fixed[j])
+    nrm, delta = pair_geometry(x[j] - own(x)[:, None, :], valid, own(radius)[:, None],
+                               radius[j])
+    return _contact_sum(dp, nrm, delta, own(radius)[:, None], radius[j],
+                        v[j] - own(v)[:, None, :], own(omega)[:, None], omega[j], m, shear, dt)
 
 
 def wall_geometry(x, a, b):

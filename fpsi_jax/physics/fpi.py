@@ -307,19 +307,21 @@ def reaction_acceleration(rows: GrainRows, force_p, m_f, wall=None):
     return reaction_on_fluid(force_p, w, rows.idx, m_f.shape[0]) / m_f[:, None]
 
 
-def lubrication_on_discs(x, v, radius, wet, idx, mu, gap_min, cutoff):
+def lubrication_on_discs(x, v, radius, wet, idx, mu, gap_min, cutoff, rows=None):
     """Σ_j of W24 over the DEM contact list for every disc: pairs of wet grains only (``wet``
     (n,) bool: a grain with fluid neighbours), gaps regularised and cut off relative to
     d̄ = R_i + R_j (``gap_min``, ``cutoff`` are fractions of d̄). Antisymmetric pair terms:
-    Σ over discs is zero (Newton's third law)."""
+    Σ over discs is zero (Newton's third law). ``rows`` (r,): only these discs' rows
+    (``idx`` is then theirs, (r, K); dem.disc_contacts)."""
     n = x.shape[0]
     valid = idx < n
+    own = (lambda a: a) if rows is None else (lambda a: a[rows])
     tab = jnp.concatenate([x, v, radius[:, None], wet[:, None].astype(x.dtype)], axis=1)
     nbr = gather(tab, idx, 0.0)
-    d_mean = radius[:, None] + nbr[..., 4]
-    f = lubrication(x[:, None, :] - nbr[..., 0:2], v[:, None, :] - nbr[..., 2:4], d_mean, mu,
-                    gap_min * d_mean, cutoff * d_mean)
-    pair = valid & wet[:, None] & (nbr[..., 5] > 0)
+    d_mean = own(radius)[:, None] + nbr[..., 4]
+    f = lubrication(own(x)[:, None, :] - nbr[..., 0:2], own(v)[:, None, :] - nbr[..., 2:4],
+                    d_mean, mu, gap_min * d_mean, cutoff * d_mean)
+    pair = valid & own(wet)[:, None] & (nbr[..., 5] > 0)
     fx, fy = sum_neighbours(jnp.where(pair, f[..., 0], 0.0), jnp.where(pair, f[..., 1], 0.0))
     return jnp.stack([fx, fy], axis=-1)
 

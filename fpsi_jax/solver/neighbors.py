@@ -98,7 +98,8 @@ def allocate(cfg: NeighborConfig, x) -> partition.NeighborList:
     n = xs.shape[0]
     # jax-md's cell capacity: the fullest cell × multiplier, + extra
     cell_cap = int(int(_fullest_cell(cfg, xs)) * cfg.capacity_multiplier) + cfg.extra_capacity
-    idx, occupancy, cell_over = _allocation_rows(cells, xs, cfg.list_radius, cell_cap)
+    idx, occupancy, cell_over = _allocation_rows(cells, xs, cfg.list_radius, cell_cap,
+                                                 cfg.n_columns)
     occupancy = int(occupancy)
     k = min(int(occupancy * cfg.capacity_multiplier + cfg.extra_capacity), idx.shape[1], n - 1)
     err = partition.PartitionError(jnp.zeros((), jnp.uint8))
@@ -119,14 +120,14 @@ def _fullest_cell(cfg: NeighborConfig, xs):
     return jnp.max(partition.count_cell_filling(xs, box, cell_size))
 
 
-@functools.partial(jax.jit, static_argnums=(0, 2, 3))
-def _allocation_rows(cells, xs, cut, cell_capacity):
+@functools.partial(jax.jit, static_argnums=(0, 2, 3, 4))
+def _allocation_rows(cells, xs, cut, cell_capacity, n_columns=0):
     """Every neighbour of every particle (the full 3^d·C candidate width), their largest
     count and the cell-list overflow flag."""
     cl = cells.update(xs, cell_capacity)
     dim = xs.shape[1]
     width = cl.id_buffer.shape[dim] * 3 ** dim          # id_buffer: (cells…, C, 1)
-    idx, occupancy = _dense_rows(cl, xs, cut, width)
+    idx, occupancy = _dense_rows(cl, xs, cut, width, n_columns=n_columns)
     return idx, occupancy, cl.did_buffer_overflow
 
 
@@ -156,7 +157,8 @@ def rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
     does, and the running count is :func:`_running_count`. 6.9k-particle dam break, as a
     jitted call of its own: 7.4–7.8 ms against jax-md's 29–35 ms (docs/performance.md)."""
     cl = cell_list(cfg, xs, nbrs.cell_list_capacity)
-    idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, nbrs.idx.shape[1], cfg.row_block)
+    idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, nbrs.idx.shape[1], cfg.row_block,
+                                 cfg.n_columns)
     err = nbrs.error.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW,
                             cl.did_buffer_overflow)
     err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
@@ -196,12 +198,14 @@ def cell_list(cfg: NeighborConfig, xs, cell_capacity: int) -> partition.CellList
         jnp.max(occupancy) > cell_capacity, cell_capacity, cell_size, None)
 
 
-def _dense_rows(cl, xs, cut, k, block_rows=0):
+def _dense_rows(cl, xs, cut, k, block_rows=0, n_columns=0):
     """The first ``k`` neighbours (in jax-md's candidate order) of every particle from the
     cell list ``cl``, padding = N, and the largest number of neighbours of a particle;
     computed in row blocks of ``block_rows`` rows (0: all at once), so that the (rows, 9C)
-    candidate arrays of a block stay in cache (pairs.over_row_blocks)."""
+    candidate arrays of a block stay in cache (pairs.over_row_blocks). Only candidates
+    below ``n_columns`` are listed (0: all; NeighborConfig.n_columns)."""
     n, dim = xs.shape
+    n_cols = n_columns or n
     cap = cl.id_buffer.shape[dim]
     buf_shape = cl.id_buffer.shape[:dim]
     per_side = jnp.array(buf_shape[::-1], jnp.int32)
@@ -217,7 +221,7 @@ def _dense_rows(cl, xs, cut, k, block_rows=0):
         cpos = pos[flat].reshape(rows, -1, dim)
         r2 = jnp.sum((x[:, None, :] - cpos) ** 2, axis=-1)
         me = row0 + jnp.arange(rows, dtype=jnp.int32)
-        valid = (r2 < cut * cut) & (cand < n) & (cand != me[:, None])
+        valid = (r2 < cut * cut) & (cand < n_cols) & (cand != me[:, None])
         count = _running_count(valid, cells.shape[1], cap)
         slot = jnp.where(valid & (count <= k), count - 1, k)
         # one flat index per candidate (row·(K+1) + slot): a scatter with (row, slot) index

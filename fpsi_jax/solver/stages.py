@@ -112,16 +112,35 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
     the shear-spring increment (0: none)."""
     dp, s, b = params.dem, state.solid, state.bonds
     x, v, omega = s.x, s.v, s.omega
+    # the contact, wall and lubrication sums run over the rows of the discs that move under
+    # their forces (Physics.moving_discs); a kinematic disc's force is never read
+    rows = jnp.asarray(phys.moving_discs, jnp.int32) if phys.moving_discs else None
+    own = (lambda a: a) if rows is None else (lambda a: a[rows])
     with jax.named_scope("dem.contacts"):
         force, torque, shear, _ = dem.disc_contacts(dp, x, v, omega, s.radius, s.mass, s.fixed,
-                                                    state.solid_nbrs.idx, s.shear, dt)
+                                                    own(state.solid_nbrs.idx), own(s.shear),
+                                                    dt, rows)
     wall_shear = s.wall_shear
     if state.walls is not None:
         with jax.named_scope("dem.walls"):
-            fw, tw, wall_shear, _ = dem.wall_contacts(dp, x, v, omega, s.radius, s.mass,
+            fw, tw, wall_shear, _ = dem.wall_contacts(dp, own(x), own(v), own(omega),
+                                                      own(s.radius), own(s.mass),
                                                       state.walls.a, state.walls.b,
-                                                      wall_shear, dt, state.walls.side)
+                                                      own(wall_shear), dt, state.walls.side)
         force, torque = force + fw, torque + tw
+    if wet is not None:
+        with jax.named_scope("fpi.lubrication"):
+            fp = params.fpi
+            force = force + fpi.lubrication_on_discs(x, v, s.radius, wet,
+                                                     own(state.solid_nbrs.idx),
+                                                     params.sph.mu, fp.lub_gap_min,
+                                                     fp.lub_cutoff, rows)
+    if rows is not None:
+        force = jnp.zeros_like(x).at[rows].set(force)
+        torque = jnp.zeros_like(omega).at[rows].set(torque)
+        shear = s.shear.at[rows].set(shear)
+        if state.walls is not None:
+            wall_shear = s.wall_shear.at[rows].set(wall_shear)
     if b is not None:
         with jax.named_scope("bonds"):
             fb, tb, alive, mode, fn, fs, m = bonds_law.bond_forces(
@@ -136,12 +155,6 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
     force = force + s.mass[:, None] * g + s.f_ext * dem.load_factor(dp.load_ramp, state.t)
     if f_fluid is not None:
         force = force + f_fluid
-    if wet is not None:
-        with jax.named_scope("fpi.lubrication"):
-            fp = params.fpi
-            force = force + fpi.lubrication_on_discs(x, v, s.radius, wet, state.solid_nbrs.idx,
-                                                     params.sph.mu, fp.lub_gap_min,
-                                                     fp.lub_cutoff)
     with jax.named_scope("dem.local_damping"):
         force = dem.local_damping(dp.alpha, force, v)
         torque = dem.local_damping(dp.alpha, torque, omega)

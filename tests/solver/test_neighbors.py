@@ -218,3 +218,25 @@ def test_rebuild_in_row_blocks_equals_jax_md_dense_list():
         want, got = jax_md(xp), ours(xp)
         np.testing.assert_array_equal(np.asarray(got.idx), np.asarray(want.idx))
         assert bool(got.did_buffer_overflow) == bool(want.did_buffer_overflow)
+
+
+def test_column_limit_leaves_out_only_the_columns_past_it():
+    """NeighborConfig.n_columns (a scene's grains, last in the SPH family, are nobody's
+    column): each row lists the full list's neighbours below the limit, in the same order,
+    and nothing else."""
+    import dataclasses
+    import jax.numpy as jnp
+    cfg, xs, nbrs = _dam_break_list()
+    n = xs.shape[0]
+    limit = n - 200
+    cut = dataclasses.replace(cfg, n_columns=limit)
+    full = np.asarray(neighbors.rebuild(cfg, nbrs, xs).idx)
+    got = np.asarray(neighbors.rebuild(cut, nbrs, xs).idx)
+    for row_full, row in zip(full, got):
+        kept = [j for j in row_full if j < limit]
+        np.testing.assert_array_equal(row[:len(kept)], kept)
+        assert np.all(row[len(kept):] == n)
+    removed = int(((full >= limit) & (full < n)).sum())
+    assert removed > 0 and int((got == n).sum() - (full == n).sum()) == removed
+    small = neighbors.allocate(cut, jnp.asarray(np.asarray(xs) + np.asarray(cfg.origin)))
+    assert neighbors.capacity(small) <= neighbors.capacity(nbrs)

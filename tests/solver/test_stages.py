@@ -110,6 +110,37 @@ def test_local_damping_on_the_moment():
                                rtol=RTOL)
 
 
+@x64
+def test_disc_forces_over_the_moving_rows_equal_all_rows():
+    """Physics.moving_discs (the two-phase dam break: 177 grains among 457 discs, its gate's
+    discs kinematic) computes the contact, wall and lubrication sums on the free discs' rows
+    only: their accelerations and contact histories equal those of the sums over all rows,
+    with overlapping, moving discs, walls and lubrication between wet grains."""
+    scene = cases.build("two_phase_dam_break", t_end=0.01)
+    phys, p, st = init_x64(scene, x64=True)
+    assert len(phys.moving_discs) == 177 and phys.n_solid == 457
+    rng = np.random.default_rng(5)
+    s = st.solid
+    n = s.x.shape[0]
+    d = 2.0 * float(np.max(np.asarray(s.radius)))
+    x = s.x + A(rng.normal(0.0, 0.03 * d, (n, 2)))
+    st = st.replace(solid=s.replace(x=x, v=A(rng.normal(0.0, 0.1, (n, 2))),
+                                    omega=A(rng.normal(0.0, 5.0, n)),
+                                    shear=A(rng.normal(0.0, 1e-6, s.shear.shape))))
+    st = st.replace(solid_nbrs=st.solid_nbrs.update(x - jnp.asarray(phys.dem_neighbors.origin)))
+    wet = jnp.asarray(~np.asarray(s.fixed))
+    forces = jax.jit(lambda ph, s_: stages.disc_forces(ph, p, s_, 1e-6, None, wet).solid,
+                     static_argnums=0)
+    got = forces(phys, st)
+    want = forces(dataclasses.replace(phys, moving_discs=()), st)
+    free = np.asarray(phys.moving_discs)
+    assert np.abs(np.asarray(want.acc)[free]).max() > 10.0      # contacts do act
+    for g, w in [(got.acc, want.acc), (got.alpha, want.alpha), (got.shear, want.shear),
+                 (got.wall_shear, want.wall_shear)]:
+        g, w = np.asarray(g)[free], np.asarray(w)[free]
+        np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-12 * np.abs(w).max())
+
+
 # --- viscous (mass-proportional) damping ---------------------------------------------------
 @x64
 def test_disc_forces_apply_viscous_damping():
