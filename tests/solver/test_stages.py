@@ -404,6 +404,26 @@ def test_sph_evaluation_in_row_blocks_equals_one_pass(name):
                                    atol=1e-12 * float(np.abs(np.asarray(w)).max()))
 
 
+@x64
+def test_grain_columns_left_out_of_the_list_change_no_sum():
+    """With grains, the SPH list lists no grain column (NeighborConfig.n_columns): one SPH
+    evaluation of a packed bed (shared pressure) gives the density, accelerations, XSPH and
+    forces on the grains of the list that lists them, to round-off."""
+    scene = cases.build("grain_bed", t_end=0.01)
+    phys, p, st = init_x64(scene, x64=True, fpi_pressure="shared")
+    assert phys.neighbors.n_columns == phys.n_fluid + phys.n_boundary
+    every = dataclasses.replace(phys, neighbors=dataclasses.replace(phys.neighbors, n_columns=0))
+    st_every = init.init_state(scene, every, p)
+    assert st_every.nbrs.idx.shape[1] > st.nbrs.idx.shape[1]
+    evaluate = jax.jit(lambda ph, s: stages.evaluate_fluid(ph, p, s, p.dt), static_argnums=0)
+    got, want = evaluate(phys, st), evaluate(every, st_every)
+    for g, w in [(got.fluid.rho, want.fluid.rho), (got.fluid.acc, want.fluid.acc),
+                 (got.fluid.xsph, want.fluid.xsph), (got.fpi.force, want.fpi.force),
+                 (got.fpi.eps, want.fpi.eps)]:
+        np.testing.assert_allclose(np.asarray(g), np.asarray(w), rtol=1e-12,
+                                   atol=1e-12 * float(np.abs(np.asarray(w)).max()))
+
+
 def _pore_scene():
     """A 16 × 16 block of water (Δx = 1 mm, h = 1.3 mm) around four grains (d = 1.6 mm),
     free on every side, no gravity, the fluid's density perturbed and everything moving at
