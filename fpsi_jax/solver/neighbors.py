@@ -189,13 +189,33 @@ def cell_list(cfg: NeighborConfig, xs, cell_capacity: int) -> partition.CellList
     else:
         order = jnp.argsort(hashes)
     slot = hashes[order] * cell_capacity + jnp.mod(ids, cell_capacity)
-    pos = jnp.zeros((count * cell_capacity, dim), xs.dtype).at[slot].set(xs[order])
-    cid = jnp.full((count * cell_capacity, 1), n, jnp.int32).at[slot].set(order[:, None])
     occupancy = jnp.zeros(count, jnp.int32).at[hashes].add(1)
+    extra = {}
+    if _packs_ids(n, xs.dtype):
+        # positions and ids in one (cells·C, dim + 1) table, filled by one scatter and read
+        # by one gather per candidate cell (:func:`_dense_rows`)
+        empty = jnp.concatenate([jnp.zeros((count * cell_capacity, dim), xs.dtype),
+                                 jnp.full((count * cell_capacity, 1), n, xs.dtype)], axis=1)
+        table = empty.at[slot].set(jnp.concatenate(
+            [xs[order], order[:, None].astype(xs.dtype)], axis=1))
+        pos, cid = table[:, :dim], table[:, dim:].astype(jnp.int32)
+        extra = {PACKED: partition.unflatten_cell_buffer(table, per_side, dim)}
+    else:
+        pos = jnp.zeros((count * cell_capacity, dim), xs.dtype).at[slot].set(xs[order])
+        cid = jnp.full((count * cell_capacity, 1), n, jnp.int32).at[slot].set(order[:, None])
     return partition.CellList(
         partition.unflatten_cell_buffer(pos, per_side, dim),
-        partition.unflatten_cell_buffer(cid, per_side, dim), cells, {},
+        partition.unflatten_cell_buffer(cid, per_side, dim), cells, extra,
         jnp.max(occupancy) > cell_capacity, cell_capacity, cell_size, None)
+
+
+#: the cell list's extra buffer holding [position, id] per slot (:func:`cell_list`)
+PACKED = "fpsi_packed"
+
+
+def _packs_ids(n: int, dtype) -> bool:
+    """Whether particle ids 0 … n are exact in ``dtype`` (float32: n < 2²⁴)."""
+    return n < 2 ** (24 if jnp.dtype(dtype) == jnp.float32 else 53)
 
 
 def _dense_rows(cl, xs, cut, k, block_rows=0, n_columns=0):
@@ -212,13 +232,20 @@ def _dense_rows(cl, xs, cut, k, block_rows=0, n_columns=0):
     shifts = jnp.asarray(_NEIGHBOUR_CELLS[dim])
     mult = jnp.array([int(np.prod(buf_shape[dim - i:])) for i in range(dim)], jnp.int32)
     ids, pos = cl.id_buffer.reshape((-1, cap)), cl.position_buffer.reshape((-1, cap, dim))
+    table = (cl.named_buffer or {}).get(PACKED)
+    table = None if table is None else table.reshape((-1, cap, dim + 1))
 
     def block(row0, rows):
         x, cell = rows_of(xs, row0, rows), rows_of(cl.particle_cell_id, row0, rows)
         cells = jnp.mod(cell[:, None, :] + shifts[None], per_side[None, None])
         flat = jnp.sum(cells * mult, axis=2).reshape(-1)
-        cand = ids[flat].reshape(rows, -1)
-        cpos = pos[flat].reshape(rows, -1, dim)
+        if table is None:
+            cand = ids[flat].reshape(rows, -1)
+            cpos = pos[flat].reshape(rows, -1, dim)
+        else:           # one gather of [x, y, id] (ours; jax-md's cell list has none)
+            got = table[flat]
+            cand = got[..., dim].astype(jnp.int32).reshape(rows, -1)
+            cpos = got[..., :dim].reshape(rows, -1, dim)
         r2 = jnp.sum((x[:, None, :] - cpos) ** 2, axis=-1)
         me = row0 + jnp.arange(rows, dtype=jnp.int32)
         valid = (r2 < cut * cut) & (cand < n_cols) & (cand != me[:, None])
