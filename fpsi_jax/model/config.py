@@ -170,10 +170,10 @@ class Physics:
       bond_section         'slab' (2D, A = 2R̄t, I = (2/3)tR̄³) or 'circular'
                            (A = πR̄², I = πR̄⁴/4; K6.1's Itasca beam)
       moving_discs         indices of the discs free at the start when a quarter or more are
-                           fixed (clamped or kinematic), else () for all: the contact, wall
-                           and lubrication sums of a DEM step run over these rows only
-                           (a fixed disc's force is never read; a disc parked later keeps
-                           its row)
+                           fixed (clamped or kinematic), else () for all: the contact and
+                           wall sums of a DEM step run over these rows only (a fixed disc's
+                           force is never read; a disc parked later keeps its row);
+                           lubrication runs over the grains' rows
 
     Couplings:
       fsi, n_structure     fluid–structure method (options.FsiMethod) and structure disc count

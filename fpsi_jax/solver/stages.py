@@ -96,24 +96,26 @@ def fluid_force_on_discs(phys: Physics, state: State):
 
 
 def wet_grains(phys: Physics, state: State):
-    """(n_solid,) bool: grains with fluid neighbours, which lubricate each other (W24); None
+    """((n_solid,) bool: grains with fluid neighbours, which lubricate each other (W24);
+    (n_grain,) the grains' disc indices, the only rows lubrication can act on), or None
     when the scene has no lubrication."""
     if not (phys.has_fpi and phys.lubrication):
         return None
-    return jnp.zeros(state.solid.x.shape[0], bool).at[state.fpi.idx].set(state.fpi.wet > 0)
+    mask = jnp.zeros(state.solid.x.shape[0], bool).at[state.fpi.idx].set(state.fpi.wet > 0)
+    return mask, state.fpi.idx
 
 
 def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
                 wet=None) -> State:
     """Every force on the discs at the state's (x, θ, v, ω): contacts, walls, bonds (with
     fracture at time state.t), gravity, external loads, the fluid's force ``f_fluid`` (held
-    over the sub-steps), lubrication between ``wet`` grains (W24), local and viscous
-    damping. Stores the accelerations, the contact histories and the bond state. ``dt`` is
-    the shear-spring increment (0: none)."""
+    over the sub-steps), lubrication between ``wet`` grains (W24; :func:`wet_grains`),
+    local and viscous damping. Stores the accelerations, the contact histories and the bond
+    state. ``dt`` is the shear-spring increment (0: none)."""
     dp, s, b = params.dem, state.solid, state.bonds
     x, v, omega = s.x, s.v, s.omega
-    # the contact, wall and lubrication sums run over the rows of the discs that move under
-    # their forces (Physics.moving_discs); a kinematic disc's force is never read
+    # the contact and wall sums run over the rows of the discs that move under their forces
+    # (Physics.moving_discs); a kinematic disc's force is never read
     rows = jnp.asarray(phys.moving_discs, jnp.int32) if phys.moving_discs else None
     own = (lambda a: a) if rows is None else (lambda a: a[rows])
     with jax.named_scope("dem.contacts"):
@@ -128,19 +130,20 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
                                                       state.walls.a, state.walls.b,
                                                       own(wall_shear), dt, state.walls.side)
         force, torque = force + fw, torque + tw
-    if wet is not None:
-        with jax.named_scope("fpi.lubrication"):
-            fp = params.fpi
-            force = force + fpi.lubrication_on_discs(x, v, s.radius, wet,
-                                                     own(state.solid_nbrs.idx),
-                                                     params.sph.mu, fp.lub_gap_min,
-                                                     fp.lub_cutoff, rows)
     if rows is not None:
         force = jnp.zeros_like(x).at[rows].set(force)
         torque = jnp.zeros_like(omega).at[rows].set(torque)
         shear = s.shear.at[rows].set(shear)
         if state.walls is not None:
             wall_shear = s.wall_shear.at[rows].set(wall_shear)
+    if wet is not None:
+        # on the grains' rows only: a structure disc is never wet
+        mask, grains = wet
+        with jax.named_scope("fpi.lubrication"):
+            fp = params.fpi
+            force = force.at[grains].add(fpi.lubrication_on_discs(
+                x, v, s.radius, mask, state.solid_nbrs.idx[grains], params.sph.mu,
+                fp.lub_gap_min, fp.lub_cutoff, grains))
     if b is not None:
         with jax.named_scope("bonds"):
             fb, tb, alive, mode, fn, fs, m = bonds_law.bond_forces(

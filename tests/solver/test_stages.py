@@ -128,7 +128,7 @@ def test_disc_forces_over_the_moving_rows_equal_all_rows():
                                     omega=A(rng.normal(0.0, 5.0, n)),
                                     shear=A(rng.normal(0.0, 1e-6, s.shear.shape))))
     st = st.replace(solid_nbrs=st.solid_nbrs.update(x - jnp.asarray(phys.dem_neighbors.origin)))
-    wet = jnp.asarray(~np.asarray(s.fixed))
+    wet = (jnp.asarray(~np.asarray(s.fixed)), jnp.asarray(np.flatnonzero(~np.asarray(s.fixed))))
     forces = jax.jit(lambda ph, s_: stages.disc_forces(ph, p, s_, 1e-6, None, wet).solid,
                      static_argnums=0)
     got = forces(phys, st)
@@ -139,6 +139,18 @@ def test_disc_forces_over_the_moving_rows_equal_all_rows():
                  (got.wall_shear, want.wall_shear)]:
         g, w = np.asarray(g)[free], np.asarray(w)[free]
         np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-12 * np.abs(w).max())
+    # lubrication, summed on the grains' rows, is W24 over every row of the contact list
+    dry = jax.jit(lambda s_: stages.disc_forces(phys, p, s_, 1e-6, None, None).solid)(st)
+    fp = p.fpi
+    lub = fpi.lubrication_on_discs(st.solid.x, st.solid.v, st.solid.radius, wet[0],
+                                   st.solid_nbrs.idx, p.sph.mu, fp.lub_gap_min, fp.lub_cutoff)
+    lub = np.asarray(lub)[free] / np.asarray(s.mass)[free, None]
+    assert np.abs(lub).max() > 0.0
+    # the local damping acts on the total force: compare where it is off (α = 0 here)
+    assert float(p.dem.alpha) == 0.0
+    scale = np.abs(np.asarray(dry.acc)[free]).max()
+    np.testing.assert_allclose(np.asarray(got.acc)[free] - np.asarray(dry.acc)[free], lub,
+                               rtol=1e-9, atol=1e-12 * scale)
 
 
 # --- viscous (mass-proportional) damping ---------------------------------------------------
