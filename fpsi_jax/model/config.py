@@ -133,7 +133,8 @@ def check_options(opts: dict) -> dict:
 
 def moving_discs(solid) -> tuple:
     """The discs free at the start, when a quarter or more of them are fixed (else (): all
-    rows; Physics.moving_discs). Below that the rows saved do not pay for the gathers."""
+    rows; Physics.moving_discs). Below that the saving is a few rows against one more
+    gather and scatter per sum."""
     if solid is None:
         return ()
     free = ~np.asarray(solid.fixed, bool)
