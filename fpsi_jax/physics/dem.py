@@ -26,9 +26,11 @@ round-off) and identical torques.
 """
 from __future__ import annotations
 
+import functools
+
 import jax.numpy as jnp
 
-from .pairs import perp, sum_neighbours
+from .pairs import perp, sum_neighbours, take_rows
 
 
 def _safe_norm(d):
@@ -102,7 +104,7 @@ def disc_contacts(dp, x, v, omega, radius, mass, fixed, idx, shear, dt, rows=Non
     n = x.shape[0]
     valid = idx < n
     j = jnp.where(valid, idx, 0)
-    own = (lambda a: a) if rows is None else (lambda a: a[rows])
+    own = functools.partial(take_rows, rows=rows)      # this call's rows of an (n, …) array
     m = reduced_mass(own(mass)[:, None], mass[j], own(fixed)[:, None], fixed[j])
     nrm, delta = pair_geometry(x[j] - own(x)[:, None, :], valid, own(radius)[:, None],
                                radius[j])

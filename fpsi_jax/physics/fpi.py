@@ -56,12 +56,14 @@ Choices the seeds leave open (docs/physics.md, docs/design.md):
 """
 from __future__ import annotations
 
+import functools
+
 from typing import NamedTuple
 
 import jax.numpy as jnp
 
 from ..model.options import Drag, Voidage
-from .pairs import gather, safe_sqrt, sum_neighbours
+from .pairs import gather, safe_sqrt, sum_neighbours, take_rows
 
 ERGUN_LIMIT = 0.8        # W20: Ergun for ε ≤ 0.8, Wen–Yu above
 RE_NEWTON = 1000.0       # W22: C_d = 0.44 above
@@ -315,7 +317,7 @@ def lubrication_on_discs(x, v, radius, wet, idx, mu, gap_min, cutoff, rows=None)
     (``idx`` is then theirs, (r, K); dem.disc_contacts)."""
     n = x.shape[0]
     valid = idx < n
-    own = (lambda a: a) if rows is None else (lambda a: a[rows])
+    own = functools.partial(take_rows, rows=rows)      # this call's rows of an (n, …) array
     tab = jnp.concatenate([x, v, radius[:, None], wet[:, None].astype(x.dtype)], axis=1)
     nbr = gather(tab, idx, 0.0)
     d_mean = own(radius)[:, None] + nbr[..., 4]

@@ -62,6 +62,11 @@ def rows_of(a, row0, rows: int):
     return jax.lax.dynamic_slice_in_dim(a, row0, rows, axis=0)
 
 
+def take_rows(a, rows):
+    """a[rows], or ``a`` itself when ``rows`` is None (every row)."""
+    return a if rows is None else a[rows]
+
+
 @jax.custom_jvp
 def sum_neighbours(*terms):
     """Σ_j of several (rows, K) pair arrays at once: one variadic reduction over the

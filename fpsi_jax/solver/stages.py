@@ -36,6 +36,7 @@ returns the new force (docs/design.md says why impulse splitting was rejected).
 """
 from __future__ import annotations
 
+import functools
 from typing import Any, NamedTuple
 
 import jax
@@ -47,7 +48,7 @@ from ..model.params import Params
 from ..model.state import State
 from ..physics import bonds as bonds_law
 from ..physics import boundary, dem, eos, fpi, fsi, kernels, sph
-from ..physics.pairs import gather, over_row_blocks, pairs, rows_of
+from ..physics.pairs import gather, over_row_blocks, pairs, rows_of, take_rows
 from . import exits, health, neighbors
 
 
@@ -117,7 +118,7 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
     # the contact and wall sums run over the rows of the discs that move under their forces
     # (Physics.moving_discs); a kinematic disc's force is never read
     rows = jnp.asarray(phys.moving_discs, jnp.int32) if phys.moving_discs else None
-    own = (lambda a: a) if rows is None else (lambda a: a[rows])
+    own = functools.partial(take_rows, rows=rows)      # this call's rows of an (n, …) array
     with jax.named_scope("dem.contacts"):
         force, torque, shear, _ = dem.disc_contacts(dp, x, v, omega, s.radius, s.mass, s.fixed,
                                                     own(state.solid_nbrs.idx), own(s.shear),
