@@ -30,6 +30,9 @@ class NeighborConfig:
     skin    extra radius (jax-md ``dr_threshold``); the list is rebuilt only when a particle
             has moved more than skin/2 since the last build
     capacity_multiplier, extra_capacity   jax-md allocation slack; grown on overflow
+    min_neighbors, min_cell_capacity   room per row and per cell at least (0: what the
+                  allocation finds × the multiplier); set when a list overflowed
+                  (``neighbors.grow``)
     origin, box   the domain rectangle: positions are shifted by ``origin`` into [0, box)
     row_block     rows per block of the rebuild's candidate pass (0: all rows at once;
                   ``Physics.pair_block``)
@@ -45,6 +48,8 @@ class NeighborConfig:
     box: tuple[float, float]
     capacity_multiplier: float = 1.25
     extra_capacity: int = 0
+    min_neighbors: int = 0
+    min_cell_capacity: int = 0
     row_block: int = 0
     n_columns: int = 0
 

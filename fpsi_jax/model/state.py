@@ -151,6 +151,10 @@ class Status:
     redo_step               first step not computed exactly: an overflow's step, or the step
                             after h outgrew the cut-off (−1: none)
     rebuilds                number of neighbour-list rebuilds so far
+    sph_need, dem_need      (2,) int32: the most neighbours of a particle and the most
+                            particles in a cell that any rebuild of the SPH / DEM list has
+                            found, before the cut to capacity: an overflowed list is regrown
+                            to fit them (``neighbors.grow``)
     """
 
     bad: Any
@@ -161,13 +165,16 @@ class Status:
     h_exceeded: Any
     rebuilds: Any
     redo_step: Any
+    sph_need: Any
+    dem_need: Any
 
     @staticmethod
     def ok():
         z = jnp.zeros((), jnp.int32)
         f = jnp.zeros((), bool)
         return Status(bad=f, step=z - 1, particle=z - 1, code=z, overflow=f, h_exceeded=f,
-                      rebuilds=z, redo_step=z - 1)
+                      rebuilds=z, redo_step=z - 1, sph_need=jnp.zeros((2,), jnp.int32),
+                      dem_need=jnp.zeros((2,), jnp.int32))
 
     def must_redo(self) -> bool:
         """Host side: the chunk must be redone with larger lists, i.e. a list overflowed

@@ -149,11 +149,11 @@ def grow(phys: Physics, failed: State) -> Physics:
             nb = dataclasses.replace(nb, r_cut=nb.r_cut * 1.25)
             phys = dataclasses.replace(phys, h_margin=phys.h_margin * 1.25)
         if neighbors.overflowed(failed.nbrs):
-            nb = neighbors.grow(nb, failed.nbrs)
+            nb = neighbors.grow(nb, failed.nbrs, np.asarray(failed.status.sph_need))
         phys = dataclasses.replace(phys, neighbors=nb)
     if phys.has_solid and neighbors.overflowed(failed.solid_nbrs):
-        phys = dataclasses.replace(
-            phys, dem_neighbors=neighbors.grow(phys.dem_neighbors, failed.solid_nbrs))
+        phys = dataclasses.replace(phys, dem_neighbors=neighbors.grow(
+            phys.dem_neighbors, failed.solid_nbrs, np.asarray(failed.status.dem_need)))
     return phys
 
 
@@ -348,7 +348,9 @@ def grown_like(phys: Physics, saved: dict) -> Physics:
         cfg, old = getattr(phys, key), saved.get(key)
         if cfg is not None and old:
             cfg = dataclasses.replace(cfg, r_cut=float(old["r_cut"]),
-                                      extra_capacity=int(old["extra_capacity"]))
+                                      extra_capacity=int(old["extra_capacity"]),
+                                      min_neighbors=int(old.get("min_neighbors", 0)),
+                                      min_cell_capacity=int(old.get("min_cell_capacity", 0)))
             phys = dataclasses.replace(phys, **{key: cfg})
     return dataclasses.replace(phys, h_margin=float(saved.get("h_margin", phys.h_margin)))
 

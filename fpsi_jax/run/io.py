@@ -470,6 +470,10 @@ def load_checkpoint(path) -> Checkpoint:
                           status=str(f.attrs.get("status", "")))
 
 
+#: state leaves that only size regrown neighbour lists; a checkpoint without them resumes
+_RUN_TALLIES = (".status.sph_need", ".status.dem_need")
+
+
 def restore(state, ck: Checkpoint):
     """``state`` (a fresh initial state of the same scene and Physics) with every leaf and
     the neighbour lists' static sizes of the checkpoint."""
@@ -485,6 +489,9 @@ def restore(state, ck: Checkpoint):
     leaves = []
     for k, v in paths:
         name = jax.tree_util.keystr(k)
+        if name not in ck.leaves and name in _RUN_TALLIES:
+            leaves.append(v)          # a file written before these tallies: start at 0
+            continue
         if name not in ck.leaves:
             raise ParameterError(f"the checkpoint lacks {name}: the scene or options differ "
                                  "from the run that wrote it")

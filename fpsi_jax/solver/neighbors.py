@@ -97,11 +97,13 @@ def allocate(cfg: NeighborConfig, x) -> partition.NeighborList:
         return fns.allocate(xs, extra_capacity=cfg.extra_capacity)
     n = xs.shape[0]
     # jax-md's cell capacity: the fullest cell × multiplier, + extra
-    cell_cap = int(int(_fullest_cell(cfg, xs)) * cfg.capacity_multiplier) + cfg.extra_capacity
+    cell_cap = max(int(int(_fullest_cell(cfg, xs)) * cfg.capacity_multiplier)
+                   + cfg.extra_capacity, cfg.min_cell_capacity)
     idx, occupancy, cell_over = _allocation_rows(cells, xs, cfg.list_radius, cell_cap,
                                                  cfg.n_columns)
     occupancy = int(occupancy)
-    k = min(int(occupancy * cfg.capacity_multiplier + cfg.extra_capacity), idx.shape[1], n - 1)
+    k = min(max(int(occupancy * cfg.capacity_multiplier + cfg.extra_capacity),
+                cfg.min_neighbors), idx.shape[1], n - 1)
     err = partition.PartitionError(jnp.zeros((), jnp.uint8))
     err = err.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW, cell_over)
     err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
@@ -132,17 +134,22 @@ def _allocation_rows(cells, xs, cut, cell_capacity, n_columns=0):
 
 
 def update(cfg: NeighborConfig, nbrs: partition.NeighborList, x):
-    """Update inside a compiled step; returns (list, rebuilt?). As jax-md's
+    """Update inside a compiled step; returns (list, rebuilt?, need). As jax-md's
     ``nbrs.update``: rebuilt (:func:`rebuild`) only once a particle has moved more than
-    skin/2 since the last build."""
+    skin/2 since the last build. ``need`` (int32, shape (2,)) is what the rebuild found,
+    before anything was cut to capacity: the most neighbours of a particle and the most
+    particles in a cell (zeros when nothing was rebuilt, or without a cell list); an
+    overflowed list is regrown to fit it (:func:`grow`)."""
     xs = shift(cfg, x)
+    zero = jnp.zeros((2,), jnp.int32)
     if nbrs.cell_list_fn is None:        # domain < 3 cut-offs: jax-md's O(N²) search
         new = nbrs.update(xs)
-        return new, jnp.any(new.reference_position != nbrs.reference_position)
+        return new, jnp.any(new.reference_position != nbrs.reference_position), zero
     moved = jnp.sum((xs - nbrs.reference_position) ** 2, axis=-1)
     rebuilt = jnp.any(moved > (0.5 * cfg.skin) ** 2)
-    new = jax.lax.cond(rebuilt, lambda: rebuild(cfg, nbrs, xs), lambda: nbrs)
-    return new, rebuilt
+    new, need = jax.lax.cond(rebuilt, lambda: _rebuild(cfg, nbrs, xs),
+                             lambda: (nbrs, zero))
+    return new, rebuilt, need
 
 
 def rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
@@ -156,14 +163,21 @@ def rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
     off, takes the rest); more than K valid neighbours set the overflow flag as jax-md
     does, and the running count is :func:`_running_count`. 6.9k-particle dam break, as a
     jitted call of its own: 7.4–7.8 ms against jax-md's 29–35 ms (docs/performance.md)."""
-    cl = cell_list(cfg, xs, nbrs.cell_list_capacity)
+    return _rebuild(cfg, nbrs, xs)[0]
+
+
+def _rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
+    """:func:`rebuild` and what it needed: (the most neighbours of a particle, the most
+    particles in a cell), int32."""
+    cl, fullest = _cell_list(cfg, xs, nbrs.cell_list_capacity)
     idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, nbrs.idx.shape[1], cfg.row_block,
                                  cfg.n_columns)
     err = nbrs.error.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW,
                             cl.did_buffer_overflow)
     err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
                      occupancy > nbrs.idx.shape[1])
-    return nbrs.set(idx=idx, reference_position=xs, error=err)
+    need = jnp.stack([occupancy.astype(jnp.int32), fullest.astype(jnp.int32)])
+    return nbrs.set(idx=idx, reference_position=xs, error=err), need
 
 
 _PACKED_LIMIT = 2 ** 31      # packed keys hash·N + i must fit an int32
@@ -177,6 +191,11 @@ def cell_list(cfg: NeighborConfig, xs, cell_capacity: int) -> partition.CellList
     two-operand sort; when hash·N + i fits in an int32 the same permutation comes from one
     sort of those packed keys, which XLA:CPU sorts 5× faster (8 048 particles: 0.26 against
     1.4 ms, 1.25 of a 7 ms rebuild of the elastic gate's list)."""
+    return _cell_list(cfg, xs, cell_capacity)[0]
+
+
+def _cell_list(cfg: NeighborConfig, xs, cell_capacity: int):
+    """:func:`cell_list` and the particle count of its fullest cell."""
     n, dim = xs.shape
     box = np.asarray(cfg.box, np.float64).astype(np.float32).reshape(1, -1)  # as _family
     _, cell_size, per_side, count = partition._cell_dimensions(dim, box, cfg.list_radius)
@@ -206,7 +225,7 @@ def cell_list(cfg: NeighborConfig, xs, cell_capacity: int) -> partition.CellList
     return partition.CellList(
         partition.unflatten_cell_buffer(pos, per_side, dim),
         partition.unflatten_cell_buffer(cid, per_side, dim), cells, extra,
-        jnp.max(occupancy) > cell_capacity, cell_capacity, cell_size, None)
+        jnp.max(occupancy) > cell_capacity, cell_capacity, cell_size, None), jnp.max(occupancy)
 
 
 #: the cell list's extra buffer holding [position, id] per slot (:func:`cell_list`)
@@ -290,7 +309,26 @@ def capacity(nbrs: partition.NeighborList) -> int:
     return int(nbrs.idx.shape[1])
 
 
-def grow(cfg: NeighborConfig, nbrs: partition.NeighborList) -> NeighborConfig:
-    """A config with ~50 % more room per row (and per cell) than ``nbrs`` had."""
-    extra = cfg.extra_capacity + max(8, capacity(nbrs) // 2)
-    return dataclasses.replace(cfg, extra_capacity=int(extra))
+def grow(cfg: NeighborConfig, nbrs: partition.NeighborList, need=(0, 0)) -> NeighborConfig:
+    """A config with room for what overflowed ``nbrs``.
+
+    ``need`` is (the most neighbours of a particle, the most particles in a cell) found by
+    the rebuilds that overflowed (:func:`update`; zeros: unknown). What overflowed, the
+    rows or the cells, gets room for its need times the capacity multiplier, as a fresh
+    allocation gives, and nothing else grows: a cell's capacity sets the width of the
+    rebuild's candidate pass (9 cells × the capacity), the rows' that of every pair pass.
+    Without a need (no cell list), every cell and row gets ~50 % more room."""
+    rows_need, cells_need = (int(v) for v in need)
+    code = int(nbrs.error.code)
+    if rows_need <= 0 or cells_need <= 0:
+        extra = cfg.extra_capacity + max(8, capacity(nbrs) // 2)
+        return dataclasses.replace(cfg, extra_capacity=int(extra))
+    mult = cfg.capacity_multiplier
+    if code & int(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW):
+        rows = max(capacity(nbrs) + 1, int(np.ceil(rows_need * mult)), cfg.min_neighbors)
+        cfg = dataclasses.replace(cfg, min_neighbors=rows)
+    if code & int(partition.PartitionErrorCode.CELL_LIST_OVERFLOW):
+        cells = max(int(nbrs.cell_list_capacity) + 1, int(np.ceil(cells_need * mult)),
+                    cfg.min_cell_capacity)
+        cfg = dataclasses.replace(cfg, min_cell_capacity=cells)
+    return cfg

@@ -182,7 +182,7 @@ def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, w
         th_new = s.theta + dt * w_half
     with jax.named_scope("neighbors.dem_update"):
         old = state.solid_nbrs
-        nbrs, rebuilt = neighbors.update(phys.dem_neighbors, old, x_new)
+        nbrs, rebuilt, need = neighbors.update(phys.dem_neighbors, old, x_new)
         shear = jax.lax.cond(rebuilt, dem.remap_history, lambda o, h, n: h,
                              old.idx, s.shear, nbrs.idx)
     st = state.status
@@ -190,7 +190,8 @@ def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, w
         t=t, solid_nbrs=nbrs,
         solid=s.replace(x=x_new, theta=th_new, v=v_half, omega=w_half, shear=shear),
         status=st.replace(rebuilds=st.rebuilds + rebuilt.astype(jnp.int32),
-                          overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool)))
+                          overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool),
+                          dem_need=jnp.maximum(st.dem_need, need)))
     state = disc_forces(phys, params, state, dt, f_fluid, wet)
     s = state.solid
     with jax.named_scope("step.solid_kick"):
@@ -256,11 +257,13 @@ def fluid_neighbours(phys: Physics, params: Params, state: State) -> State:
     """Update the SPH family's list at the new positions (rebuilt when a particle moved more
     than half the skin); an overflow is flagged for the host to redo the chunk."""
     with jax.named_scope("neighbors.update"):
-        nbrs, rebuilt = neighbors.update(phys.neighbors, state.nbrs, sph_positions(state))
+        nbrs, rebuilt, need = neighbors.update(phys.neighbors, state.nbrs,
+                                                sph_positions(state))
     st = state.status
     return state.replace(nbrs=nbrs, status=st.replace(
         overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool),
-        rebuilds=st.rebuilds + rebuilt.astype(jnp.int32)))
+        rebuilds=st.rebuilds + rebuilt.astype(jnp.int32),
+        sph_need=jnp.maximum(st.sph_need, need)))
 
 
 def fluid_forces(phys: Physics, params: Params, state: State) -> State:

@@ -12,7 +12,7 @@ from fpsi_jax.cases import overrides
 from fpsi_jax.model.errors import ParameterError, SimulationError
 from fpsi_jax.run import io
 from fpsi_jax.run.driver import _advance, setup, simulate
-from fpsi_jax.solver import forward, init
+from fpsi_jax.solver import forward, init, neighbors
 
 
 def test_unstable_run_stops_with_diagnosis_and_keeps_good_frames(tmp_path):
@@ -83,6 +83,12 @@ def test_overflow_is_redone_and_equals_a_large_allocation():
                      chunk_steps=20, rho_tolerance=0.9, skin=0.1)
     assert tight.reallocations >= 1          # the tight list did overflow ...
     assert roomy.reallocations == 0
+    grown = tight.physics.neighbors          # ... and grew to what its rebuilds counted
+    assert grown.min_neighbors or grown.min_cell_capacity
+    assert grown.extra_capacity == 0
+    need = np.asarray(tight.state.status.sph_need)
+    assert neighbors.capacity(tight.state.nbrs) >= need[0]
+    assert tight.state.nbrs.cell_list_capacity >= need[1]
     assert tight.n_steps == roomy.n_steps
     # ... and the redone chunks give the same answer as a list that never overflowed
     np.testing.assert_allclose(np.asarray(tight.state.fluid.x),

@@ -84,15 +84,79 @@ def test_rebuild_flags_overflow_like_jax_md():
     assert bool(want.did_buffer_overflow) and bool(got.did_buffer_overflow)
 
 
+def _most_in_a_cell(cfg, xs):
+    """The most particles in one cell of the list's grid, counted on the host."""
+    cl = neighbors.cell_list(cfg, xs, xs.shape[0])
+    return int(np.max(np.sum(np.asarray(cl.id_buffer)[..., 0] < xs.shape[0], axis=-1)))
+
+
+def test_update_counts_the_neighbours_an_overflowed_list_cut_and_grow_fits_them():
+    """A list with 8 slots too few per row (cells with room) overflows its rows at the
+    next rebuild, not its cells: update's need is the largest row of a list with room
+    for all (counted from a roomy allocation) and the fullest cell, and the list grown for
+    that need holds every row with the same cells (so the rebuild's candidate pass is no
+    wider)."""
+    import dataclasses
+    import jax.numpy as jnp
+    from jax_md import partition
+    cfg, xs, nbrs = _dam_break_list()
+    cfg = dataclasses.replace(cfg, extra_capacity=8)      # cells with room to spare
+    nbrs = neighbors.allocate(cfg, xs + jnp.asarray(cfg.origin, xs.dtype))
+    short = nbrs.set(idx=nbrs.idx[:, :neighbors.capacity(nbrs) - 16])
+    step = jnp.asarray([0.6 * cfg.skin, 0.0], xs.dtype)
+    moved = xs + jnp.asarray(cfg.origin, xs.dtype) + step
+    new, rebuilt, need = neighbors.update(cfg, short, moved)
+    assert bool(rebuilt)
+    assert int(new.error.code) == int(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW)
+    roomy = neighbors.allocate(dataclasses.replace(cfg, capacity_multiplier=3.0), moved)
+    want = int(np.max(np.sum(np.asarray(roomy.idx) < xs.shape[0], axis=1)))
+    assert int(need[0]) == want > neighbors.capacity(short)
+    assert int(need[1]) == _most_in_a_cell(cfg, neighbors.shift(cfg, moved))
+    grown = neighbors.grow(cfg, new, need)
+    assert grown.min_neighbors == max(neighbors.capacity(short) + 1,
+                                      int(np.ceil(want * cfg.capacity_multiplier)))
+    assert (grown.extra_capacity, grown.min_cell_capacity) == (cfg.extra_capacity, 0)
+    fits = neighbors.allocate(grown, moved)
+    assert neighbors.capacity(fits) >= grown.min_neighbors > want
+    assert fits.cell_list_capacity == neighbors.allocate(cfg, moved).cell_list_capacity
+    again = neighbors.rebuild(grown, fits, neighbors.shift(grown, moved))
+    assert not neighbors.overflowed(again)
+    _, rebuilt, need = neighbors.update(cfg, nbrs, xs + jnp.asarray(cfg.origin, xs.dtype))
+    assert not bool(rebuilt) and np.all(np.asarray(need) == 0)   # nothing rebuilt
+
+
+def test_grow_after_a_cell_overflow_grows_the_cells_to_their_need():
+    """Squeezed particles overflow the cells: the grown config has room for the fullest
+    cell × the multiplier and no more room per row than the rows needed; without a need
+    (no cell list) every cell and row gets half a row more."""
+    from jax_md import partition
+    cfg, xs, nbrs = _dam_break_list()
+    c = xs.mean(axis=0)
+    xp = c + 0.8 * (xs - c)
+    over, need = neighbors._rebuild(cfg, nbrs, xp)
+    assert int(over.error.code) & int(partition.PartitionErrorCode.CELL_LIST_OVERFLOW)
+    fullest = _most_in_a_cell(cfg, xp)
+    assert int(need[1]) == fullest > nbrs.cell_list_capacity
+    grown = neighbors.grow(cfg, over, need)
+    assert grown.min_cell_capacity == int(np.ceil(fullest * cfg.capacity_multiplier))
+    assert grown.extra_capacity == cfg.extra_capacity
+    fits = neighbors.allocate(grown, xp + np.asarray(cfg.origin, np.float32))
+    assert fits.cell_list_capacity >= grown.min_cell_capacity
+    code = int(neighbors.rebuild(grown, fits, xp).error.code)
+    assert not code & int(partition.PartitionErrorCode.CELL_LIST_OVERFLOW)
+    blind = neighbors.grow(cfg, over, (0, 0))
+    assert blind.extra_capacity == cfg.extra_capacity + max(8, neighbors.capacity(nbrs) // 2)
+
+
 def test_update_rebuilds_only_past_half_the_skin():
     import jax.numpy as jnp
     cfg, xs, nbrs = _dam_break_list()
     d = jnp.zeros_like(xs).at[7, 0].set(0.49 * cfg.skin)
-    same, rebuilt = neighbors.update(cfg, nbrs, xs + d + jnp.asarray(cfg.origin, xs.dtype))
+    same, rebuilt, _ = neighbors.update(cfg, nbrs, xs + d + jnp.asarray(cfg.origin, xs.dtype))
     assert not bool(rebuilt)
     np.testing.assert_array_equal(np.asarray(same.reference_position), np.asarray(xs))
     d = d.at[7, 0].set(0.51 * cfg.skin)
-    new, rebuilt = neighbors.update(cfg, nbrs, xs + d + jnp.asarray(cfg.origin, xs.dtype))
+    new, rebuilt, _ = neighbors.update(cfg, nbrs, xs + d + jnp.asarray(cfg.origin, xs.dtype))
     assert bool(rebuilt)
     np.testing.assert_array_equal(np.asarray(new.reference_position), np.asarray(xs + d))
 
@@ -111,7 +175,7 @@ def test_update_without_a_cell_list_uses_jax_md():
         nbrs = neighbors.allocate(cfg, x)
     assert nbrs.cell_list_fn is None
     d = jnp.zeros_like(x).at[0, 0].set(0.6 * cfg.skin)
-    new, rebuilt = neighbors.update(cfg, nbrs, x + d)
+    new, rebuilt, _ = neighbors.update(cfg, nbrs, x + d)
     assert bool(rebuilt)
     want = neighbors.neighbor_fns(cfg).update(neighbors.shift(cfg, x + d), nbrs)
     np.testing.assert_array_equal(np.asarray(new.idx), np.asarray(want.idx))
