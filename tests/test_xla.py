@@ -11,7 +11,9 @@ from fpsi_jax import _xla
 
 
 def _run(code, **env):
-    e = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "FPSI_KEEP_XLA_FLAGS")}
+    e = {k: v for k, v in os.environ.items()
+         if k not in ("XLA_FLAGS", "FPSI_KEEP_XLA_FLAGS", "JAX_COMPILATION_CACHE_DIR",
+                      "FPSI_NO_COMPILE_CACHE", "FPSI_CACHE_DIR")}
     e.update(env)
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=e,
                           timeout=120)
@@ -72,3 +74,48 @@ def test_reassociation_keeps_nan_and_inf():
     r = _run(code)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["True", "False", "True", "True", "True", "True", "True"]
+
+
+# --- the compilation cache ------------------------------------------------------------------
+_JIT = ("import fpsi_jax, jax, jax.numpy as jnp; "
+        "print(fpsi_jax.COMPILE_CACHE, jax.config.jax_compilation_cache_dir); "
+        "jax.jit(lambda x: jnp.sin(x) * 3.0 + x)(jnp.arange(5.0)).block_until_ready()")
+
+
+def test_compiled_programs_are_kept_and_found_again(tmp_path):
+    """Import turns on JAX's persistent cache in FPSI_CACHE_DIR; a program compiled in one
+    process is written there, and the same program in a second process adds nothing (it
+    was loaded)."""
+    cache = str(tmp_path / "xla")
+    r = _run(_JIT, **dict(FPSI_CACHE_DIR=cache))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == [cache, cache]
+    first = sorted(os.listdir(cache))
+    assert first
+    r = _run(_JIT, **dict(FPSI_CACHE_DIR=cache))
+    assert r.returncode == 0, r.stderr
+    assert sorted(f for f in os.listdir(cache) if not f.endswith("-atime")) == \
+        sorted(f for f in first if not f.endswith("-atime"))
+
+
+def test_the_users_cache_choice_and_the_opt_out_are_kept(tmp_path):
+    mine = str(tmp_path / "mine")
+    r = _run(_JIT, **dict(JAX_COMPILATION_CACHE_DIR=mine,
+                                FPSI_CACHE_DIR=str(tmp_path / "ours")))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["None", mine]
+    assert not os.path.exists(tmp_path / "ours")
+    r = _run(_JIT, **dict(FPSI_NO_COMPILE_CACHE="1", FPSI_CACHE_DIR=str(tmp_path / "o")))
+    assert r.stdout.split() == ["None", "None"]
+    assert not os.path.exists(tmp_path / "o")
+
+
+def test_prune_deletes_the_oldest_entries_above_the_limit(tmp_path):
+    for k in range(10):
+        f = tmp_path / f"e{k}"
+        f.write_bytes(b"x" * 100)
+        os.utime(f, (1000 + k, 1000 + k))
+    _xla.prune(str(tmp_path), limit=2000)          # under the limit: nothing goes
+    assert len(os.listdir(tmp_path)) == 10
+    _xla.prune(str(tmp_path), limit=800)           # to under 600 bytes, oldest first
+    assert sorted(os.listdir(tmp_path)) == [f"e{k}" for k in range(5, 10)]
