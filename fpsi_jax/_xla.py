@@ -31,7 +31,9 @@ These are compiler options, not changes to the compiled program's maths; GPU bac
 ignore them (XLA:GPU reassociates its reductions anyway). Nothing inside a jitted function
 depends on them.
 
-**Compiled programs are kept on disk** (:func:`configure_cache`): JAX's persistent
+**Compiled programs on disk** (:func:`configure_cache`, ``fpsi_jax.use_compile_cache()``;
+the ``fpsi`` command and the test suite call it, a Python program that imports fpsi_jax
+decides for itself, since the setting is JAX's and covers all of its programs): JAX's persistent
 compilation cache, in ``$FPSI_CACHE_DIR`` or ``~/.cache/fpsi-jax/xla`` (under
 ``$XDG_CACHE_HOME`` when set), every program however quick to compile; above 1 GiB the
 oldest entries are deleted at import (:func:`prune`). A run's fixed cost is mostly compilation: the step's
@@ -40,7 +42,9 @@ imported; a repeated run of the same scene loads them instead (the elastic gate'
 134-step run: 13.5 s → 6.1 s). The cache key covers the program, the XLA flags, the
 device and the JAX version, so a changed scene or setting compiles afresh. Left alone
 when the user has chosen a cache directory for JAX (``JAX_COMPILATION_CACHE_DIR`` or
-``jax.config``), or with ``FPSI_NO_COMPILE_CACHE=1``.
+``jax.config``), or with ``FPSI_NO_COMPILE_CACHE=1``. On some Intel CPUs JAX 0.9–0.10
+rejects every cached CPU program on reload (jax-ml/jax#38445: an error line per program,
+then an ordinary compile); there ``FPSI_NO_COMPILE_CACHE=1`` keeps the log quiet.
 """
 from __future__ import annotations
 

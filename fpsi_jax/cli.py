@@ -10,6 +10,7 @@ import json
 import os
 import sys
 
+from . import _xla
 from .model.errors import Interrupted, ParameterError, SimulationError, number
 
 
@@ -211,6 +212,7 @@ def _plugins() -> dict:
 
 
 def main(argv=None):
+    _xla.configure_cache()        # compiled programs on disk (FPSI_NO_COMPILE_CACHE=1: off)
     args = make_parser().parse_args(argv)
     commands = {"list": cmd_list, "run": cmd_run, "validate": cmd_validate}
     commands.update({name: mod.run for name, mod in _plugins().items()})

@@ -6,6 +6,8 @@ import pytest
 
 import fpsi_jax  # noqa: F401  (sets its XLA:CPU flag before any JAX backend starts)
 
+fpsi_jax.use_compile_cache()   # the workers share compiled programs (fpsi_jax/_xla.py)
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)

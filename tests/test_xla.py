@@ -78,34 +78,37 @@ def test_reassociation_keeps_nan_and_inf():
 
 # --- the compilation cache ------------------------------------------------------------------
 _JIT = ("import fpsi_jax, jax, jax.numpy as jnp; "
-        "print(fpsi_jax.COMPILE_CACHE, jax.config.jax_compilation_cache_dir); "
+        "print(fpsi_jax.use_compile_cache(), jax.config.jax_compilation_cache_dir); "
         "jax.jit(lambda x: jnp.sin(x) * 3.0 + x)(jnp.arange(5.0)).block_until_ready()")
 
 
 def test_compiled_programs_are_kept_and_found_again(tmp_path):
-    """Import turns on JAX's persistent cache in FPSI_CACHE_DIR; a program compiled in one
-    process is written there, and the same program in a second process adds nothing (it
-    was loaded)."""
+    """use_compile_cache() turns on JAX's persistent cache in FPSI_CACHE_DIR; a program
+    compiled in one process is written there, and a second process loads it (JAX logs the
+    cache hit). Importing fpsi_jax alone leaves JAX's setting as it was."""
     cache = str(tmp_path / "xla")
-    r = _run(_JIT, **dict(FPSI_CACHE_DIR=cache))
+    logged = ("import logging; logging.basicConfig(level=logging.DEBUG); "
+              "logging.getLogger('jax._src.compiler').setLevel(logging.DEBUG); " + _JIT)
+    r = _run(logged, FPSI_CACHE_DIR=cache)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == [cache, cache]
-    first = sorted(os.listdir(cache))
-    assert first
-    r = _run(_JIT, **dict(FPSI_CACHE_DIR=cache))
+    assert os.listdir(cache)
+    assert "Persistent compilation cache hit for 'jit__lambda'" not in r.stderr
+    r = _run(logged, FPSI_CACHE_DIR=cache)
     assert r.returncode == 0, r.stderr
-    assert sorted(f for f in os.listdir(cache) if not f.endswith("-atime")) == \
-        sorted(f for f in first if not f.endswith("-atime"))
+    assert "Persistent compilation cache hit for 'jit__lambda'" in r.stderr
+    r = _run("import fpsi_jax, jax; print(jax.config.jax_compilation_cache_dir)",
+             FPSI_CACHE_DIR=cache)
+    assert r.stdout.split() == ["None"]
 
 
 def test_the_users_cache_choice_and_the_opt_out_are_kept(tmp_path):
     mine = str(tmp_path / "mine")
-    r = _run(_JIT, **dict(JAX_COMPILATION_CACHE_DIR=mine,
-                                FPSI_CACHE_DIR=str(tmp_path / "ours")))
+    r = _run(_JIT, JAX_COMPILATION_CACHE_DIR=mine, FPSI_CACHE_DIR=str(tmp_path / "ours"))
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["None", mine]
     assert not os.path.exists(tmp_path / "ours")
-    r = _run(_JIT, **dict(FPSI_NO_COMPILE_CACHE="1", FPSI_CACHE_DIR=str(tmp_path / "o")))
+    r = _run(_JIT, FPSI_NO_COMPILE_CACHE="1", FPSI_CACHE_DIR=str(tmp_path / "o"))
     assert r.stdout.split() == ["None", "None"]
     assert not os.path.exists(tmp_path / "o")
 

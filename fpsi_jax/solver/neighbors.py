@@ -325,15 +325,17 @@ def capacity(nbrs: partition.NeighborList) -> int:
 def grow(cfg: NeighborConfig, nbrs: partition.NeighborList, need=(0, 0)) -> NeighborConfig:
     """A config with room for what overflowed ``nbrs``.
 
-    ``need`` is (the most neighbours of a particle, the most particles in a cell) found by
-    the rebuilds that overflowed (:func:`update`; zeros: unknown). What overflowed, the
-    rows or the cells, gets room for its need times the capacity multiplier, as a fresh
-    allocation gives, and nothing else grows: a cell's capacity sets the width of the
-    rebuild's candidate pass (9 cells × the capacity), the rows' that of every pair pass.
-    Without a need (no cell list), every cell and row gets ~50 % more room."""
+    ``need`` is (the most neighbours of a particle, the most particles in a cell) that the
+    run's rebuilds have found so far (:func:`update`, ``Status.sph_need``; zeros: unknown).
+    What overflowed, the rows or the cells, gets room for its need times the capacity
+    multiplier (and at least one slot more than it had), as a fresh allocation gives, and
+    nothing else grows: a cell's capacity sets the width of the rebuild's candidate pass
+    (9 cells × the capacity), the rows' that of every pair pass. Without a need, or for a
+    list without a cell list (jax-md's O(N²) search, whose allocation knows only
+    ``extra_capacity``), every cell and row gets ~50 % more room."""
     rows_need, cells_need = (int(v) for v in need)
     code = int(nbrs.error.code)
-    if rows_need <= 0 or cells_need <= 0:
+    if rows_need <= 0 or cells_need <= 0 or nbrs.cell_list_fn is None:
         extra = cfg.extra_capacity + max(8, capacity(nbrs) // 2)
         return dataclasses.replace(cfg, extra_capacity=int(extra))
     mult = cfg.capacity_multiplier

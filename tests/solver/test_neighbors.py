@@ -175,10 +175,15 @@ def test_update_without_a_cell_list_uses_jax_md():
         nbrs = neighbors.allocate(cfg, x)
     assert nbrs.cell_list_fn is None
     d = jnp.zeros_like(x).at[0, 0].set(0.6 * cfg.skin)
-    new, rebuilt, _ = neighbors.update(cfg, nbrs, x + d)
-    assert bool(rebuilt)
+    new, rebuilt, need = neighbors.update(cfg, nbrs, x + d)
+    assert bool(rebuilt) and np.all(np.asarray(need) == 0)
     want = neighbors.neighbor_fns(cfg).update(neighbors.shift(cfg, x + d), nbrs)
     np.testing.assert_array_equal(np.asarray(new.idx), np.asarray(want.idx))
+    # growing it adds extra capacity, the one setting its allocation reads, even with a
+    # need from earlier rebuilds
+    grown = neighbors.grow(cfg, nbrs, (5, 3))
+    assert grown.extra_capacity > cfg.extra_capacity
+    assert (grown.min_neighbors, grown.min_cell_capacity) == (0, 0)
 
 
 def test_running_count_equals_cumsum_exactly():
