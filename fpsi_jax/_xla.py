@@ -33,13 +33,13 @@ depends on them.
 
 **Compiled programs on disk** (:func:`configure_cache`, ``fpsi_jax.use_compile_cache()``;
 the ``fpsi`` command and the test suite call it, a Python program that imports fpsi_jax
-decides for itself, since the setting is JAX's and covers all of its programs): JAX's persistent
-compilation cache, in ``$FPSI_CACHE_DIR`` or ``~/.cache/fpsi-jax/xla`` (under
+decides for itself, since the setting is JAX's and covers all of its programs): JAX's
+persistent compilation cache, in ``$FPSI_CACHE_DIR`` or ``~/.cache/fpsi-jax/xla`` (under
 ``$XDG_CACHE_HOME`` when set), every program however quick to compile; above 1 GiB the
-oldest entries are deleted at import (:func:`prune`). A run's fixed cost is mostly compilation: the step's
-chunk, the list allocation's programs and the ~180 small programs jax-md runs when it is
-imported; a repeated run of the same scene loads them instead (the elastic gate's
-134-step run: 13.5 s → 6.1 s). The cache key covers the program, the XLA flags, the
+oldest entries are deleted when it is turned on (:func:`prune`). A run's fixed cost is
+mostly compilation: the step's chunk, the list allocation's programs and the ~180 small
+programs jax-md runs when it is imported; a repeated run of the same scene loads them
+instead (the elastic gate's 134-step run: 13.5 s → 6.1 s). The cache key covers the program, the XLA flags, the
 device and the JAX version, so a changed scene or setting compiles afresh. Left alone
 when the user has chosen a cache directory for JAX (``JAX_COMPILATION_CACHE_DIR`` or
 ``jax.config``), or with ``FPSI_NO_COMPILE_CACHE=1``. On some Intel CPUs JAX 0.9–0.10
@@ -98,7 +98,7 @@ def configure() -> bool:
     return all(f in os.environ["XLA_FLAGS"].split() for f in FLAGS)
 
 
-#: most bytes the compilation cache keeps (least recently used entries go first)
+#: most bytes the compilation cache keeps (the oldest entries go first: :func:`prune`)
 CACHE_BYTES = 2 ** 30
 
 
