@@ -39,8 +39,9 @@ persistent compilation cache, in ``$FPSI_CACHE_DIR`` or ``~/.cache/fpsi-jax/xla`
 oldest entries are deleted when it is turned on (:func:`prune`). A run's fixed cost is
 mostly compilation: the step's chunk, the list allocation's programs and the ~180 small
 programs jax-md runs when it is imported; a repeated run of the same scene loads them
-instead (the elastic gate's 134-step run: 13.5 s → 6.1 s). The cache key covers the program, the XLA flags, the
-device and the JAX version, so a changed scene or setting compiles afresh. Left alone
+instead (the elastic gate's 134-step run: 13.5 s → 6.1 s). The cache key covers the
+program, the XLA flags, the device and the JAX version, so a changed scene or setting
+compiles afresh. Left alone
 when the user has chosen a cache directory for JAX (``JAX_COMPILATION_CACHE_DIR`` or
 ``jax.config``), or with ``FPSI_NO_COMPILE_CACHE=1``. On some Intel CPUs JAX 0.9–0.10
 rejects every cached CPU program on reload (jax-ml/jax#38445: an error line per program,
