@@ -302,6 +302,8 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
                 writer.write_probes((np.arange(done, done + n) + 1) * dt, obs_chunks[-1][1])
             done += n
             if writer:
+                if c.regrowths:
+                    writer.set_physics(phys)
                 writer.write(state)
             if bar:
                 bar.advance(n, excluded(state))

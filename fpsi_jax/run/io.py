@@ -343,6 +343,11 @@ class Writer:
         except OSError as e:
             raise OutputError(f"writing the probes to {self.path} failed: {e}") from e
 
+    def set_physics(self, phys) -> None:
+        """Record ``phys`` as the run's Physics (after its lists were regrown), so that a
+        resume from a later checkpoint reallocates them as large (driver.grown_like)."""
+        self.f.attrs["physics"] = phys.to_json()
+
     def write(self, state, checkpoint: bool = True):
         """Append one frame whole (and the checkpoint of ``state``); refuses non-finite data
         (the driver checks before calling); OutputError when the file cannot be written."""

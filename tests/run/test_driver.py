@@ -1,6 +1,8 @@
 """The host driver (fpsi_jax.run.driver): unstable runs stop with a diagnosis and leave a
 valid, finite file; frames and speed; dt overrides; an overflowing neighbour list is regrown
 and its chunk redone; the last short chunk and a second run reuse the compiled program."""
+import json
+
 import h5py
 import jax
 import jax.numpy as jnp
@@ -75,10 +77,11 @@ def squeezed_block():
     return sc
 
 
-def test_overflow_is_redone_and_equals_a_large_allocation():
+def test_overflow_is_redone_and_equals_a_large_allocation(tmp_path):
     # a thin skin (0.1 h), so the compression outgrows the list within the 24 steps
+    out = tmp_path / "tight.h5"
     tight = simulate(squeezed_block(), progress=False, capacity_multiplier=1.0,
-                     chunk_steps=20, rho_tolerance=0.9, skin=0.1)
+                     chunk_steps=20, rho_tolerance=0.9, skin=0.1, output=str(out))
     roomy = simulate(squeezed_block(), progress=False, capacity_multiplier=4.0,
                      chunk_steps=20, rho_tolerance=0.9, skin=0.1)
     assert tight.reallocations >= 1          # the tight list did overflow ...
@@ -89,6 +92,10 @@ def test_overflow_is_redone_and_equals_a_large_allocation():
     need = np.asarray(tight.state.status.sph_need)
     assert neighbors.capacity(tight.state.nbrs) >= need[0]
     assert tight.state.nbrs.cell_list_capacity >= need[1]
+    with h5py.File(out) as f:                # the file knows the grown lists (for a resume)
+        saved = json.loads(f.attrs["physics"])["neighbors"]
+    assert (saved["min_neighbors"], saved["min_cell_capacity"]) == \
+        (grown.min_neighbors, grown.min_cell_capacity)
     assert tight.n_steps == roomy.n_steps
     # ... and the redone chunks give the same answer as a list that never overflowed
     np.testing.assert_allclose(np.asarray(tight.state.fluid.x),
