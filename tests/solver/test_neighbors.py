@@ -85,9 +85,14 @@ def test_rebuild_flags_overflow_like_jax_md():
 
 
 def _most_in_a_cell(cfg, xs):
-    """The most particles in one cell of the list's grid, counted on the host."""
-    cl = neighbors.cell_list(cfg, xs, xs.shape[0])
-    return int(np.max(np.sum(np.asarray(cl.id_buffer)[..., 0] < xs.shape[0], axis=-1)))
+    """The most particles in one cell of the list's grid, counted on the host with numpy
+    (cell = ⌊x / cell size⌋ on jax-md's grid for the list radius)."""
+    from jax_md import partition
+    box = np.asarray(cfg.box, np.float32).reshape(1, -1)
+    _, size, per_side, _ = partition._cell_dimensions(2, box, cfg.list_radius)
+    per_side = np.asarray(per_side).ravel().astype(int)
+    cell = np.mod((np.asarray(xs) / np.asarray(size)).astype(int), per_side)
+    return int(np.bincount(cell[:, 0] + per_side[0] * cell[:, 1]).max())
 
 
 def test_update_counts_the_neighbours_an_overflowed_list_cut_and_grow_fits_them():
@@ -127,8 +132,8 @@ def test_update_counts_the_neighbours_an_overflowed_list_cut_and_grow_fits_them(
 
 def test_grow_after_a_cell_overflow_grows_the_cells_to_their_need():
     """Squeezed particles overflow the cells: the grown config has room for the fullest
-    cell × the multiplier and no more room per row than the rows needed; without a need
-    (no cell list) every cell and row gets half a row more."""
+    cell × the multiplier, and rows only for what the rows counted; without a need every
+    cell and row gets half a row more."""
     from jax_md import partition
     cfg, xs, nbrs = _dam_break_list()
     c = xs.mean(axis=0)
@@ -140,6 +145,10 @@ def test_grow_after_a_cell_overflow_grows_the_cells_to_their_need():
     grown = neighbors.grow(cfg, over, need)
     assert grown.min_cell_capacity == int(np.ceil(fullest * cfg.capacity_multiplier))
     assert grown.extra_capacity == cfg.extra_capacity
+    rows_over = int(over.error.code) & int(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW)
+    assert grown.min_neighbors == (max(neighbors.capacity(nbrs) + 1,
+                                       int(np.ceil(int(need[0]) * cfg.capacity_multiplier)))
+                                   if rows_over else 0)
     fits = neighbors.allocate(grown, xp + np.asarray(cfg.origin, np.float32))
     assert fits.cell_list_capacity >= grown.min_cell_capacity
     code = int(neighbors.rebuild(grown, fits, xp).error.code)
