@@ -6,6 +6,7 @@ import pytest
 
 from fpsi_jax import cases
 from fpsi_jax.cases.grain_bed import hex_bed, random_bed, separate
+from fpsi_jax.model.errors import ParameterError
 
 
 def test_hex_bed_has_the_layers_asked_for():
@@ -26,6 +27,14 @@ def test_random_bed_settles_without_overlap_on_the_floor():
     assert d.min() > 0.0024 * (1 - 1e-9)          # the soft settle's overlaps pushed apart
     assert x[:, 1].min() == pytest.approx(0.0012, rel=0.02)   # the lowest disc on the floor
     assert (x[:, 0] > 0.0012 * 0.98).all() and (x[:, 0] < 0.02 - 0.0012 * 0.98).all()
+
+
+def test_random_bed_refuses_a_packing_not_at_rest():
+    """0.1 s after the drop the discs are still falling: with no more time allowed the
+    builder says so (one line: the seed, the fastest disc, the bound) instead of returning
+    a bed that is not settled."""
+    with pytest.raises(ParameterError, match=r"seed = 3: .* not at rest after 0.1 s .*v_rest"):
+        random_bed(0.02, 0.0024, 12, seed=3, t_settle=0.1, t_max=0.1)
 
 
 def test_bed_starts_hydrostatic_with_pore_fluid_of_its_voidage():
