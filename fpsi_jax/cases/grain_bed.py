@@ -40,9 +40,9 @@ def random_bed(width, d, n, seed=0, t_settle=0.4, v_rest=1e-3, t_max=4.0):
     """``n`` discs dropped at random from above the floor and settled dry under gravity by a
     DEM run (soft contacts kn = 1e5 N/m, friction 0.3, local damping 0.7): a random packing
     at rest on the floor between two walls ``width`` apart. The run goes on in spans of
-    ``t_settle`` s until no disc moved faster than ``v_rest`` m/s during a whole span
-    (after a fixed 0.4 s discs were still moving at 50–110 mm/s, and such a bed did not
-    come to rest under water); a packing not at rest after ``t_max`` s
+    ``t_settle`` s until no disc moved faster than ``v_rest`` m/s during a whole span: no
+    fixed time settles every packing (after 0.4 s discs still moved at 50–110 mm/s, and
+    such a bed did not come to rest under water). A packing not at rest after ``t_max`` s
     is refused. The starting positions are a random sequential addition (no overlaps) in a
     box ``width`` wide and 3 n d²/width high, from ``seed``."""
     rng = np.random.default_rng(seed)
