@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ParameterError, fmt, number
-from .options import (BondSection, BoundaryPressure, Drag, FpiPressure, FsiMethod, KernelKind,
-                      Voidage, choose)
+from .options import (BondSection, BoundaryPressure, DensityDiffusion, Drag, FpiPressure,
+                      FsiMethod, KernelKind, Voidage, choose)
 from .scene import Scene
 
 # the kernels' support radius in units of h (both kernels of physics/kernels.py vanish at q = 2)
@@ -158,7 +158,10 @@ class Physics:
       anticlump            anti-clump term R_ij (W45, K38) on fluid–fluid pairs
       anticlump_boundary   also on fluid–boundary pairs (K advises against: off)
       variable_h           Dh/Dt = −h/(n_d ρ) Dρ/Dt (K37)
-      delta_sph            Molteni–Colagrossi density diffusion (off by default)
+      delta_sph            δ-SPH density diffusion (off by default)
+      density_diffusion    what δ-SPH diffuses: 'fourtakas' (default: ρ_j − ρ_i less its
+                           hydrostatic part; Fourtakas et al. 2019) or 'molteni' (ρ_j − ρ_i;
+                           Molteni & Colagrossi 2009), see sph.delta_pairs
       artificial_viscosity Monaghan α-viscosity (off by default; not in the seeds)
       wall_repulsion       short-range backstop against fluid creeping through a fixed wall
                            (sph.wall_repulsion_scalar; on by default, zero at rest; not in
@@ -224,6 +227,7 @@ class Physics:
     anticlump_boundary: bool = False
     variable_h: bool = True
     delta_sph: bool = False
+    density_diffusion: DensityDiffusion = DensityDiffusion.FOURTAKAS
     artificial_viscosity: bool = False
     wall_repulsion: bool = True
     wall_range: float = 0.0
@@ -257,11 +261,12 @@ class Physics:
                "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
                "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section",
                "dem_skin", "fsi", "dem_substeps", "fpi", "voidage", "lubrication",
-               "fpi_pressure", "eps_floor", "drag", "pair_block")
+               "fpi_pressure", "eps_floor", "drag", "pair_block", "density_diffusion")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,
-               "fpi_pressure": FpiPressure, "drag": Drag}
+               "fpi_pressure": FpiPressure, "drag": Drag,
+               "density_diffusion": DensityDiffusion}
 
     def __post_init__(self):
         # a Physics built by hand may name its choices by string: make them members, so the

@@ -31,6 +31,12 @@ class BoundaryPressure(Choice):
     EXTRAPOLATED = "extrapolated"    # Adami, Hu & Adams (2012): P_b from the fluid
 
 
+class DensityDiffusion(Choice):
+    """Which density differences δ-SPH diffuses (physics/sph.py, ``delta_pairs``)."""
+    MOLTENI = "molteni"        # Molteni & Colagrossi (2009): ρ_j − ρ_i
+    FOURTAKAS = "fourtakas"    # Fourtakas et al. (2019): less the hydrostatic part
+
+
 class FsiMethod(Choice):
     """Fluid–structure coupling (physics/fsi.py; K §5)."""
     STATIONARY = "stationary"                          # K method 1

@@ -32,8 +32,8 @@ class SphParams:
     r_clump   anti-clump coefficient r of R_ij (W45, K38)
     dp        initial particle spacing Δp used by the anti-clump term [m]
     eps_xsph  XSPH coefficient ε (K39), 0 ≤ ε ≤ 1
-    delta     δ-SPH density-diffusion coefficient (Molteni & Colagrossi 2009), used only when
-              Physics.delta_sph is on
+    delta     δ-SPH density-diffusion coefficient δ (Molteni & Colagrossi 2009; Fourtakas et
+              al. 2019: Physics.density_diffusion), used only when Physics.delta_sph is on
     alpha     Monaghan artificial-viscosity coefficient α, used only when
               Physics.artificial_viscosity is on (not in the seeds)
     wall_beta strength β of the wall backstop, (β c0²/r0²)(1 − r²/r0²)² x_ij inside the

@@ -17,6 +17,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from ..model.options import DensityDiffusion
 from .pairs import Pairs, gather, sum_neighbours
 
 
@@ -30,14 +31,29 @@ def continuity_pairs(pr: Pairs):
     return pr.m_j / pr.rho_j * jnp.sum(pr.vij * pr.dx, axis=-1) * pr.f
 
 
-def delta_pairs(delta, c0, rho_i, pr: Pairs, diffused=None):
-    """δ-SPH density diffusion (Molteni & Colagrossi 2009), per pair:
-    δ h_ij c0 ψ_ij·∇_iW_ij V_j, ψ_ij = 2(ρ_j − ρ_i) x_ji/(r² + 0.01h²), on fluid–fluid
-    pairs only (summed over j in :func:`density_rate`). ``diffused`` = (ρ_i, ρ_j) diffuses
-    another density than the one of the volumes m_j/ρ_j (with grains: the intrinsic ρ,
-    while the volumes use ερ)."""
+def delta_pairs(delta, c0, rho_i, pr: Pairs, diffused=None, hydrostatic=None):
+    """δ-SPH density diffusion, per pair: δ h_ij c0 ψ_ij·∇_iW_ij V_j, on fluid–fluid pairs
+    only (summed over j in :func:`density_rate`).
+
+    Molteni & Colagrossi (2009): ψ_ij = 2(ρ_j − ρ_i) x_ji/(r² + 0.01h²).
+    Fourtakas et al. (2019) (``hydrostatic`` = ρ0 g/c0², a vector): the hydrostatic part of
+    the difference is left out, ψ_ij = 2(ρ_j − ρ_i − ρ^H_ji) x_ji/(r² + 0.01h²) with
+    ρ^H_ji = (ρ0/c0²) g·x_ji, the first-order form of their ρ0[(1 + ρ0 g·x_ji/C_B)^{1/γ} − 1],
+    C_B = ρ0c0²/γ (the second-order remainder is (1 − γ) g·x_ji/(2c0²) of the term, below
+    1e-3 within the kernel's reach). Near a floor the neighbours all lie above, and the
+    Molteni term of a hydrostatic column, Σ_j 2(ρ_j − ρ_i)(−r²F_ij)V_j/(r² + 0.01h²) < 0,
+    drains density from the bottom rows: their pressure settles a few per cent below
+    ρ0 g d (docs/physics.md, *δ-SPH*). With the hydrostatic part removed the term vanishes
+    for a fluid at rest at any depth and still damps the acoustic noise.
+
+    ``diffused`` = (ρ_i, ρ_j) diffuses another density than the one of the volumes m_j/ρ_j
+    (with grains: the intrinsic ρ, while the volumes use ερ)."""
     d_i, d_j = (rho_i, pr.rho_j) if diffused is None else diffused
-    s = (2.0 * (d_j - d_i[:, None]) * (-pr.r2 * pr.f)
+    diff = d_j - d_i[:, None]
+    if hydrostatic is not None:
+        # ρ_j − ρ_i − ρ^H_ji, ρ^H_ji = (ρ0/c0²) g·x_ji = −(ρ0/c0²) g·x_ij
+        diff = diff + (pr.dx[..., 0] * hydrostatic[0] + pr.dx[..., 1] * hydrostatic[1])
+    s = (2.0 * diff * (-pr.r2 * pr.f)
          / (pr.r2 + 0.01 * pr.hij ** 2) * pr.m_j / pr.rho_j)
     return delta * c0 * jnp.where(pr.fluid_j, pr.hij * s, 0.0)
 
@@ -115,8 +131,9 @@ def smoothing_length_rate(h, rho, drho, n_d=2.0):
     return -h / (n_d * rho) * drho
 
 
-def density_rate(phys, sp, rho_i, pr: Pairs, eps=None, rho_intrinsic=None):
-    """Dρ/Dt of the fluid rows: continuity (K32) plus δ-SPH diffusion when switched on.
+def density_rate(phys, sp, rho_i, pr: Pairs, eps=None, rho_intrinsic=None, gravity=None):
+    """Dρ/Dt of the fluid rows: continuity (K32) plus δ-SPH diffusion when switched on
+    (``phys.density_diffusion``; the Fourtakas form needs ``gravity``).
     With grains ``rho_i`` is ερ (W42) and δ-SPH diffuses the intrinsic ρ (``rho_intrinsic``,
     all particles), scaled by ε_i: it damps pressure noise without smearing the voidage."""
     if not phys.delta_sph:
@@ -128,9 +145,16 @@ def density_rate(phys, sp, rho_i, pr: Pairs, eps=None, rho_intrinsic=None):
         diffused = None
         if eps is not None:
             diffused = (pr.own(rho_intrinsic), gather(rho_intrinsic, pr.idx))
+        hydrostatic = None
+        if phys.density_diffusion is DensityDiffusion.FOURTAKAS:
+            if gravity is None:
+                raise ValueError("density_rate: the 'fourtakas' δ-SPH needs the gravity")
+            g = (jnp.asarray(sp.rho0 / sp.c0 ** 2) * jnp.asarray(gravity)).astype(pr.dx.dtype)
+            hydrostatic = (g[0], g[1])
         # both sums in one variadic reduction over the neighbour axis (a stacked
         # (rows, K, 2) array would be written out first)
-        c_sum, d_sum = sum_neighbours(cont, delta_pairs(sp.delta, sp.c0, rho_i, pr, diffused))
+        c_sum, d_sum = sum_neighbours(
+            cont, delta_pairs(sp.delta, sp.c0, rho_i, pr, diffused, hydrostatic))
         return rho_i * c_sum + (1.0 if eps is None else eps) * d_sum
 
 

@@ -468,6 +468,7 @@ def compose(spec: dict, path: str) -> SceneFile:
                        xsph=ph["xsph"], variable_h=ph["variable_h"],
                        rho_tolerance=ph["rho_tolerance"],
                        delta_sph=(sp.delta > 0) if ph["delta_sph"] is None else ph["delta_sph"],
+                       density_diffusion=ph["density_diffusion"],
                        artificial_viscosity=((sp.alpha > 0) if ph["artificial_viscosity"] is None
                                              else ph["artificial_viscosity"]))
         fsi = ph["coupling"] or ("extrapolated" if coupled else None)

@@ -364,12 +364,14 @@ def new_level(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c
     rho_c = f.rho if fp is None else fp.eps * f.rho
     if fp is None:
         drho = pair_pass(phys, fam, rho_c_all,
-                         lambda pr: sph.density_rate(phys, sp, pr.own(rho_c), pr))
+                         lambda pr: sph.density_rate(phys, sp, pr.own(rho_c), pr,
+                                                     gravity=params.gravity))
     else:
         rho_all = _all(state, f.rho, "rho")
         drho = pair_pass(phys, fam, rho_c_all,
                          lambda pr: sph.density_rate(phys, sp, pr.own(rho_c), pr,
-                                                     pr.own(fp.eps), rho_all))
+                                                     pr.own(fp.eps), rho_all,
+                                                     params.gravity))
     rho_c_new = rho_c + dt * drho
     h_new = f.h
     if phys.variable_h:
@@ -418,7 +420,7 @@ def mixture_density_rate(phys: Physics, params: Params, state: State, fam: SphFa
     mix = fam._replace(v=_cat(flux, fam.v[phys.n_fluid:]))
     return pair_pass(phys, mix, rho_c_all,
                      lambda pr: sph.density_rate(phys, params.sph, pr.own(f.rho / eps), pr,
-                                                 1.0, rho_all))
+                                                 1.0, rho_all, params.gravity))
 
 
 def _mixture_level(phys: Physics, params: Params, state: State, fam: SphFamily,

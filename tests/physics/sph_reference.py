@@ -45,8 +45,10 @@ class Pair:
         self.gradw = self.xij * self.f          # ∇_i W_ij
 
 
-def ref_terms(i, nbrs, x, v, h, m, rho_old, rho, p, n_fluid, sp, anticlump_boundary=False):
-    """Every SPH term of fluid particle i, summed over the neighbour list ``nbrs``."""
+def ref_terms(i, nbrs, x, v, h, m, rho_old, rho, p, n_fluid, sp, anticlump_boundary=False,
+              gravity=None):
+    """Every SPH term of fluid particle i, summed over the neighbour list ``nbrs``; with
+    ``gravity`` δ-SPH in Fourtakas' form (the hydrostatic difference left out)."""
     out = dict(cont=0.0, delta=0.0, pres=np.zeros(2), clump=np.zeros(2), visc=np.zeros(2),
                av=np.zeros(2), xsph=np.zeros(2))
     for j in nbrs:
@@ -56,7 +58,10 @@ def ref_terms(i, nbrs, x, v, h, m, rho_old, rho, p, n_fluid, sp, anticlump_bound
         out["cont"] += rho_old[i] * m[j] / rho_old[j] * float(pr.vij @ pr.gradw)
         # δ-SPH (Molteni & Colagrossi): δ h c0 Σ 2(ρj−ρi) x_ji·∇W/(r²+0.01h²) V_j, fluid only
         if fluid_j:
-            psi_dot = 2 * (rho_old[j] - rho_old[i]) * float(-pr.xij @ pr.gradw) / (
+            d_rho = rho_old[j] - rho_old[i]
+            if gravity is not None:   # ρ^H_ji = (ρ0/c0²) g·x_ji (Fourtakas et al. 2019)
+                d_rho -= sp["rho0"] / sp["c0"] ** 2 * float(np.asarray(gravity) @ -pr.xij)
+            psi_dot = 2 * d_rho * float(-pr.xij @ pr.gradw) / (
                 pr.r2 + 0.01 * pr.h ** 2)
             out["delta"] += sp["delta"] * pr.h * sp["c0"] * psi_dot * m[j] / rho_old[j]
         # pressure (W43, K34)

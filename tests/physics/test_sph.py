@@ -59,7 +59,7 @@ def test_continuity_rigid_motion_is_zero():
 
 
 def test_delta_diffusion():
-    phys = _phys(delta_sph=True)
+    phys = _phys(delta_sph=True, density_diffusion="molteni")
     got = np.asarray(sph.density_rate(phys, _sp(), _a(RHO_OLD[:NF]), _pairs()))
     want = [_ref(i)["cont"] + _ref(i)["delta"] for i in range(NF)]
     np.testing.assert_allclose(got, want, rtol=RTOL)
@@ -71,6 +71,66 @@ def test_delta_diffusion():
     assert d[0] < 0 < d[1]
     vol = np.asarray(M[:NF]) / np.asarray(RHO_OLD[:NF])
     assert abs(vol @ d) < 1e-12 * np.sum(np.abs(vol * d))
+
+
+def test_delta_diffusion_fourtakas():
+    """Fourtakas' form: the pair terms of the Molteni form with ρ_j − ρ_i less
+    (ρ0/c0²) g·x_ji, read off the density_rate the step calls."""
+    phys = _phys(delta_sph=True, density_diffusion="fourtakas")
+    got = np.asarray(sph.density_rate(phys, _sp(), _a(RHO_OLD[:NF]), _pairs(), gravity=_a(G)))
+    want = [_ref(i)["cont"] + _ref(i, gravity=G)["delta"] for i in range(NF)]
+    # guard: the hydrostatic part changes the diffusion by more than the tolerance
+    d_m, d_f = ([_ref(i, **kw)["delta"] for i in range(NF)] for kw in ({}, {"gravity": G}))
+    assert np.all(np.abs(np.subtract(d_f, d_m)) > 0.005 * np.abs(d_m))
+    np.testing.assert_allclose(got, want, rtol=RTOL)
+
+
+def _hydrostatic_column(dx=0.002, h=0.0025, nx=7, ny=8, depth=0.05, tait=True):
+    """A lattice of fluid particles resting on a floor at y = 0 (the lowest row at dx/2),
+    its densities those of a Tait fluid at rest under a free surface at ``depth``, and
+    every pair within 2h listed (fluid only: δ-SPH reads no wall). ``tait=False``: the
+    densities linear in depth, ρ0 + ρ0 g d/c0² (Fourtakas' ρ^H exactly)."""
+    sp = _sp()
+    rho0, c0, gamma = float(sp.rho0), float(sp.c0), float(sp.gamma)
+    gx, gy = np.meshgrid((np.arange(nx) + 0.5) * dx, (np.arange(ny) + 0.5) * dx)
+    x = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    n = len(x)
+    p_h = rho0 * 9.81 * (depth - x[:, 1])
+    rho = (rho0 * (1.0 + gamma * p_h / (rho0 * c0 ** 2)) ** (1.0 / gamma) if tait
+           else rho0 + p_h / c0 ** 2)
+    d = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    near = (d < 2 * h) & ~np.eye(n, dtype=bool)
+    k = near.sum(1).max()
+    idx = np.full((n, k), n, np.int32)
+    for i in range(n):                      # the hand-made list of a small test lattice
+        js = np.flatnonzero(near[i])
+        idx[i, :len(js)] = js
+    pr = pairs.pairs(KERN, n, _a(x), _a(np.zeros_like(x)), _a(np.full(n, h)),
+                     _a(rho * dx * dx), _a(rho), jnp.asarray(idx))
+    return x, rho, pr, sp
+
+
+@pytest.mark.parametrize("tait", [False, True])
+def test_delta_diffusion_leaves_a_fluid_at_rest_at_rest(tait):
+    """Near a floor all neighbours lie above: Molteni's term of a hydrostatic column drains
+    density from the bottom row (its pressure sinks below ρ0 g d). Fourtakas' form is zero
+    for densities linear in depth (to round-off); for the Tait fluid's hydrostatic
+    densities what is left is the curvature of ρ(d), under 1 % of Molteni's term."""
+    x, rho, pr, sp = _hydrostatic_column(tait=tait)
+    n = len(x)
+    bottom = x[:, 1] < 0.002
+    molteni = np.asarray(sph.delta_pairs(sp.delta, sp.c0, _a(rho), pr).sum(axis=1))
+    g = float(sp.rho0 / sp.c0 ** 2) * G
+    fourtakas = np.asarray(sph.delta_pairs(sp.delta, sp.c0, _a(rho), pr,
+                                           hydrostatic=_a(g)).sum(axis=1))
+    assert np.all(molteni[bottom] < 0)
+    bound = 1e-2 if tait else 1e-10     # round-off of ρ_j − ρ_i at ρ ≈ 1000
+    assert np.max(np.abs(fourtakas)) < bound * np.max(np.abs(molteni[bottom]))
+    # and density_rate switches it on for density_diffusion = 'fourtakas'
+    phys = _phys(n_fluid=n, n_boundary=0, delta_sph=True, density_diffusion="fourtakas")
+    np.testing.assert_allclose(np.asarray(sph.density_rate(phys, sp, _a(rho), pr,
+                                                           gravity=_a(G))),
+                               fourtakas, rtol=1e-10, atol=1e-12 * np.max(np.abs(molteni)))
 
 
 # --- momentum ----------------------------------------------------------------------------
@@ -331,7 +391,7 @@ def test_padded_slots_contribute_exactly_zero():
     out = {}
     for k, idx in idx_lists.items():
         pr = _pairs(idx)
-        drho = sph.density_rate(phys, sp, _a(RHO_OLD[:NF]), pr)
+        drho = sph.density_rate(phys, sp, _a(RHO_OLD[:NF]), pr, gravity=_a(G))
         acc, xs, _ = sph.momentum_rate(phys, KERN, sp, _a(G), _a(RHO), _a(P), pr)
         out[k] = (np.asarray(drho), np.asarray(acc), np.asarray(xs))
         pad = np.asarray(pr.idx) == 3
@@ -392,11 +452,11 @@ def test_newton_third_law_matches_reference_sums():
     phys = _phys(n_fluid=n, n_boundary=0, **ALL_ON)
     acc, xs, _ = sph.momentum_rate(phys, KERN, _sp(**spd), _a([0.0, 0.0]), _a(c["rho"]),
                                 _a(p), pr)
-    drho = sph.density_rate(phys, _sp(**spd), _a(c["rho_old"]), pr)
+    drho = sph.density_rate(phys, _sp(**spd), _a(c["rho_old"]), pr, gravity=_a(G))
     for i in range(n):
         nb = [int(j) for j in c["idx"][i] if j < n]
         ref = ref_terms(i, nb, c["x"], c["v"], c["h"], c["m"], c["rho_old"], c["rho"], p, n,
-                        spd)
+                        spd, gravity=G)
         a_ref = ref["pres"] + ref["clump"] + ref["visc"] + ref["av"]
         np.testing.assert_allclose(np.asarray(acc[i]), a_ref, rtol=1e-9,
                                    atol=1e-11 * np.abs(a_ref).max())
@@ -435,7 +495,7 @@ def _coincident_acc(x):
                      jnp.asarray([[1, 2, 3], [0, 2, 3], [0, 1, 3]]))
     phys = _phys(n_fluid=n, n_boundary=0, **ALL_ON)
     acc, xs, _ = sph.momentum_rate(phys, KERN, _sp(), _a([0.0, 0.0]), _a(RHO), _a(P), pr)
-    drho = sph.density_rate(phys, _sp(), _a(RHO_OLD), pr)
+    drho = sph.density_rate(phys, _sp(), _a(RHO_OLD), pr, gravity=_a(G))
     return acc, xs, drho
 
 
