@@ -40,6 +40,12 @@ class NeighborConfig:
                   family puts the grains last and no SPH sum reads a grain column (the grains'
                   own rows carry their coupling), so a scene with grains lists none: in a
                   packed bed a fluid row's ~30 grain entries would double its width
+    fluid_only_rows  (first, stop, n_fluid): rows first … stop − 1 list only particles
+                  below n_fluid ((): every row lists every column). The SPH family's
+                  boundary and structure rows are read only for their fluid neighbours
+                  (the wall's extrapolated pressure, the structure's pressure and
+                  reaction), so they list no wall particle: a boundary row inside a
+                  lattice finer than the fluid's set the list's width K for every row
     """
 
     r_cut: float
@@ -52,6 +58,7 @@ class NeighborConfig:
     min_cell_capacity: int = 0
     row_block: int = 0
     n_columns: int = 0
+    fluid_only_rows: tuple = ()
 
     @property
     def list_radius(self) -> float:
@@ -329,9 +336,12 @@ class Physics:
             if n_grain:     # fluid, boundary, structure: the rows the SPH sums read
                 n_columns = sum(b.n for b in (scene.fluid, scene.boundary) if b is not None)
                 n_columns += n_structure
+            n_f = scene.fluid.n
+            n_walls = n_structure + (scene.boundary.n if scene.boundary is not None else 0)
             nb = NeighborConfig(r_cut=KERNEL_SUPPORT * h_max, skin=skin_factor * h_max / h_margin,
                                 origin=lo, box=box, capacity_multiplier=float(cap),
-                                row_block=int(opts["pair_block"]), n_columns=n_columns)
+                                row_block=int(opts["pair_block"]), n_columns=n_columns,
+                                fluid_only_rows=(n_f, n_f + n_walls, n_f) if n_walls else ())
         if scene.solid is not None:
             r_max = float(np.max(scene.solid.radius))
             reach = 1.0

@@ -131,7 +131,8 @@ def _allocation_rows(cfg, cells, xs, cell_capacity):
           else cells.update(xs, cell_capacity))
     dim = xs.shape[1]
     width = cl.id_buffer.shape[dim] * 3 ** dim          # id_buffer: (cells…, C, 1)
-    idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, width, n_columns=cfg.n_columns)
+    idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, width, n_columns=cfg.n_columns,
+                                 fluid_only=cfg.fluid_only_rows)
     return idx, occupancy, cl.did_buffer_overflow
 
 
@@ -173,7 +174,7 @@ def _rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
     particles in a cell), int32."""
     cl, fullest = _cell_list(cfg, xs, nbrs.cell_list_capacity)
     idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, nbrs.idx.shape[1], cfg.row_block,
-                                 cfg.n_columns)
+                                 cfg.n_columns, cfg.fluid_only_rows)
     err = nbrs.error.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW,
                             cl.did_buffer_overflow)
     err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
@@ -250,12 +251,14 @@ def _packs_ids(n: int, dtype) -> bool:
     return n < 2 ** (24 if jnp.dtype(dtype) == jnp.float32 else 53)
 
 
-def _dense_rows(cl, xs, cut, k, block_rows=0, n_columns=0):
+def _dense_rows(cl, xs, cut, k, block_rows=0, n_columns=0, fluid_only=()):
     """The first ``k`` neighbours (in jax-md's candidate order) of every particle from the
     cell list ``cl``, padding = N, and the largest number of neighbours of a particle;
     computed in row blocks of ``block_rows`` rows (0: all at once), so that the (rows, 9C)
     candidate arrays of a block stay in cache (pairs.over_row_blocks). Only candidates
-    below ``n_columns`` are listed (0: all; NeighborConfig.n_columns)."""
+    below ``n_columns`` are listed (0: all; NeighborConfig.n_columns), and rows in
+    ``fluid_only`` = (first, stop, n_fluid) list only candidates below n_fluid
+    (NeighborConfig.fluid_only_rows)."""
     n, dim = xs.shape
     n_cols = n_columns or n
     cap = cl.id_buffer.shape[dim]
@@ -281,6 +284,10 @@ def _dense_rows(cl, xs, cut, k, block_rows=0, n_columns=0):
         r2 = jnp.sum((x[:, None, :] - cpos) ** 2, axis=-1)
         me = row0 + jnp.arange(rows, dtype=jnp.int32)
         valid = (r2 < cut * cut) & (cand < n_cols) & (cand != me[:, None])
+        if fluid_only:
+            first, stop, n_f = fluid_only
+            wall_row = (me >= first) & (me < stop)
+            valid = valid & (~wall_row[:, None] | (cand < n_f))
         count = _running_count(valid, cells.shape[1], cap)
         slot = jnp.where(valid & (count <= k), count - 1, k)
         # one flat index per candidate (row·(K+1) + slot): a scatter with (row, slot) index

@@ -22,12 +22,34 @@ def test_grow_adds_room():
     assert not neighbors.overflowed(nb)
 
 
-def _dam_break_list():
+def _dam_break_list(every_column=True):
+    """The dam break's SPH list; ``every_column``: with the boundary rows listing every
+    particle, as jax-md does (NeighborConfig.fluid_only_rows off)."""
+    import dataclasses
+
     import jax.numpy as jnp
     sc = cases.build("dam_break", dx=0.01)
     cfg = Physics.for_scene(sc).neighbors
+    if every_column:
+        cfg = dataclasses.replace(cfg, fluid_only_rows=())
     x = jnp.asarray(np.concatenate([sc.fluid.x, sc.boundary.x]), jnp.float32)
     return cfg, neighbors.shift(cfg, x), neighbors.allocate(cfg, x)
+
+
+def test_boundary_rows_list_only_the_fluid():
+    """With NeighborConfig.fluid_only_rows (the SPH family's default) the fluid rows are
+    jax-md's and each boundary row is jax-md's row with the wall particles taken out, in
+    the same order."""
+    cfg_all, xs, full = _dam_break_list()
+    cfg, _, narrow = _dam_break_list(every_column=False)
+    first, stop, n_f = cfg.fluid_only_rows
+    n = xs.shape[0]
+    assert first == n_f and stop == n
+    a, b = np.asarray(full.idx), np.asarray(narrow.idx)
+    assert np.sum(b[first:] < n) < 0.5 * np.sum(a[first:] < n)   # guard: walls were listed
+    for i in range(n):
+        row = [j for j in a[i] if j < n and (i < first or j < n_f)]
+        assert list(b[i][b[i] < n]) == row
 
 
 def test_rebuild_equals_jax_md_dense_list():
@@ -241,7 +263,7 @@ def _check_allocate_equals_jax_md(scene, kw, extra):
     if phys.dem_neighbors is not None:
         fams.append((phys.dem_neighbors, sc.solid.x))
     for cfg, x in fams:
-        cfg = dataclasses.replace(cfg, extra_capacity=extra)
+        cfg = dataclasses.replace(cfg, extra_capacity=extra, fluid_only_rows=())
         x = jnp.asarray(x, jnp.float32)
         got = neighbors.allocate(cfg, x)
         want = neighbors.neighbor_fns(cfg).allocate(neighbors.shift(cfg, x),
