@@ -166,9 +166,9 @@ class Physics:
       anticlump_boundary   also on fluid–boundary pairs (K advises against: off)
       variable_h           Dh/Dt = −h/(n_d ρ) Dρ/Dt (K37)
       delta_sph            δ-SPH density diffusion (off by default)
-      density_diffusion    what δ-SPH diffuses: 'fourtakas' (default: ρ_j − ρ_i less its
-                           hydrostatic part; Fourtakas et al. 2019) or 'molteni' (ρ_j − ρ_i;
-                           Molteni & Colagrossi 2009), see sph.delta_pairs
+      density_diffusion    what δ-SPH diffuses: 'molteni' (default: ρ_j − ρ_i; Molteni &
+                           Colagrossi 2009) or 'fourtakas' (ρ_j − ρ_i less its hydrostatic
+                           part; Fourtakas et al. 2019), see sph.delta_pairs
       artificial_viscosity Monaghan α-viscosity (off by default; not in the seeds)
       wall_repulsion       short-range backstop against fluid creeping through a fixed wall
                            (sph.wall_repulsion_scalar; on by default, zero at rest; not in
@@ -234,7 +234,7 @@ class Physics:
     anticlump_boundary: bool = False
     variable_h: bool = True
     delta_sph: bool = False
-    density_diffusion: DensityDiffusion = DensityDiffusion.FOURTAKAS
+    density_diffusion: DensityDiffusion = DensityDiffusion.MOLTENI
     artificial_viscosity: bool = False
     wall_repulsion: bool = True
     wall_range: float = 0.0

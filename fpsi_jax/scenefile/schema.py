@@ -234,9 +234,9 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
       Key("boundary_pressure", "str", "", "extrapolated", "pressure of the fixed boundary "
           "particles", choices=("fixed", "extrapolated")),
       Key("delta_sph", "bool", "", None, "δ-SPH density diffusion (default: fluid.delta > 0)"),
-      Key("density_diffusion", "str", "", "fourtakas", "what δ-SPH diffuses: the density "
-          "differences less their hydrostatic part (Fourtakas et al. 2019) or all of them "
-          "(Molteni & Colagrossi 2009)", choices=("fourtakas", "molteni")),
+      Key("density_diffusion", "str", "", "molteni", "what δ-SPH diffuses: all density "
+          "differences (Molteni & Colagrossi 2009) or the same less their hydrostatic part "
+          "(Fourtakas et al. 2019)", choices=("molteni", "fourtakas")),
       Key("artificial_viscosity", "bool", "", None, "Monaghan viscosity (default: "
           "fluid.alpha > 0)"),
       Key("x64", "bool", "", False, "run in float64"),
