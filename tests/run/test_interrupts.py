@@ -94,7 +94,10 @@ def test_a_signal_stops_at_the_end_of_a_chunk_and_resume_finishes_bitwise(
         assert np.array_equal(got[name], want[name]), name
 
 
-def test_after_sigkill_the_sidecar_lists_exactly_the_frames_of_the_file(tmp_path):
+def test_after_sigkill_the_sidecar_lists_the_frames_of_the_file(tmp_path):
+    """A kill at any moment leaves every frame in /time whole and the sidecar listing the
+    same frames, or one fewer when it lands in the one write of the sidecar's block (the
+    sidecar is written last; io.py), never a frame the file lacks."""
     out = tmp_path / "run.h5"
     p = start(out)
     wait_for_frames(out, 3, p)
@@ -103,7 +106,7 @@ def test_after_sigkill_the_sidecar_lists_exactly_the_frames_of_the_file(tmp_path
     p.wait(timeout=60)
     run = io.read(out)                     # every listed frame whole
     assert run.status == "running" and run.frames >= 3
-    assert sidecar_frames(out) == run.frames
+    assert sidecar_frames(out) in (run.frames - 1, run.frames)
 
 
 def test_a_file_can_be_read_while_a_run_writes_it_and_a_second_run_is_refused(tmp_path):
