@@ -15,7 +15,7 @@ import numpy as np
 
 from .errors import ParameterError, fmt, number
 from .options import (BondSection, BoundaryPressure, DensityDiffusion, Drag, FpiPressure,
-                      FsiMethod, KernelKind, Voidage, choose)
+                      FsiMethod, KernelKind, Side, Voidage, choose)
 from .scene import Scene
 
 # the kernels' support radius in units of h (both kernels of physics/kernels.py vanish at q = 2)
@@ -223,6 +223,11 @@ class Physics:
       open_sides           sides (options.Side) a particle may leave through: it is then
                            parked (``parking``) and counted, not an error
       parking              :class:`Parking` of the scene with open sides, else None
+      rim                  (x_lo, x_hi, y_top) of the boundary particles when the top is
+                           open: beside them (x < x_lo or x > x_hi) and above y_top a particle
+                           has gone over the walls, and leaves through the open top there
+                           (a splash over a wall is not a leak through it); None without
+                           an open top or a boundary, or when a particle starts out there
     """
 
     n_fluid: int
@@ -262,6 +267,7 @@ class Physics:
     domain_hi: tuple | None = None
     open_sides: tuple = ()
     parking: Parking | None = None
+    rim: tuple | None = None
     pair_block: int = 0
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
@@ -358,7 +364,16 @@ class Physics:
             grid = (box[0], parking.top - lo[1])       # the lists' grid covers the band
             nb = nb and dataclasses.replace(nb, box=grid)
             dem_nb = dem_nb and dataclasses.replace(dem_nb, box=grid)
-        return cls(domain_lo=lo, domain_hi=hi, open_sides=sides, parking=parking,n_fluid=scene.fluid.n if scene.fluid else 0,
+        rim = None
+        if Side.TOP in sides and scene.boundary is not None and scene.boundary.n:
+            xb = np.asarray(scene.boundary.x, float)
+            rim = (float(xb[:, 0].min()), float(xb[:, 0].max()), float(xb[:, 1].max()))
+            xs = [np.asarray(b.x, float) for b in (scene.fluid, scene.solid) if b is not None]
+            if any(np.any(((x[:, 0] < rim[0]) | (x[:, 0] > rim[1])) & (x[:, 1] > rim[2]))
+                   for x in xs):
+                rim = None          # the walls do not hold everything: no rim to go over
+        return cls(domain_lo=lo, domain_hi=hi, open_sides=sides, parking=parking, rim=rim,
+                   n_fluid=scene.fluid.n if scene.fluid else 0,
                    n_boundary=scene.boundary.n if scene.boundary else 0,
                    neighbors=nb, wall_range=scene.wall_range(),
                    n_solid=scene.solid.n if scene.solid else 0,

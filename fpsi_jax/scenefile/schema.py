@@ -78,7 +78,8 @@ table("scene", False, "What is run, for how long, and where.",
       Key("open_sides", "list", "", ["top"], "sides of the domain particles may leave "
           "through (left, right, bottom, top; \"none\": every side closed): a particle that "
           "crosses one is taken out of the computation and counted, one that crosses a closed "
-          "side stops the run", choices=("left", "right", "bottom", "top", "none")))
+          "side stops the run; with an open top, one that goes over the walls (beside the "
+          "boundary particles, above the highest) is out too", choices=("left", "right", "bottom", "top", "none")))
 
 table("fluid", False, "The (single) SPH fluid: material, resolution and numerics.",
       _pos("density", "kg/m³", 1000.0, "reference density ρ0"),

@@ -1,7 +1,8 @@
 """Open sides: particles that leave the domain through one are taken out of the computation.
 
 As DualSPHysics does with its excluded particles, a particle (fluid or disc) whose position
-crosses an open side of the domain (``Scene.open_sides``) is *parked*: it keeps its slot in
+crosses an open side of the domain (``Scene.open_sides``), or with an open top goes over
+the walls (beside the boundary particles, above the highest of them), is *parked*: it keeps its slot in
 every array (the compiled shapes never change) but is moved to its own spot on the parking
 lattice above the domain (:class:`~fpsi_jax.model.config.Parking`), farther than any list
 radius from everything, so it drops out of every neighbour list and pair sum; its velocity
@@ -19,7 +20,8 @@ from ..model.options import Side
 
 
 def crossed_open_side(phys: Physics, x):
-    """(n,) bool: the position lies beyond one of the domain's open sides."""
+    """(n,) bool: the position lies beyond one of the domain's open sides, or, with an open
+    top, beside the walls above their top (``Physics.rim``: it went over them)."""
     lo = jnp.asarray(phys.domain_lo, x.dtype)
     hi = jnp.asarray(phys.domain_hi, x.dtype)
     beyond = {Side.LEFT: x[:, 0] < lo[0], Side.RIGHT: x[:, 0] >= hi[0],
@@ -27,6 +29,9 @@ def crossed_open_side(phys: Physics, x):
     out = jnp.zeros(x.shape[0], bool)
     for side in phys.open_sides:
         out = out | beyond[side]
+    if phys.rim is not None:
+        x_lo, x_hi, y_top = phys.rim
+        out = out | (((x[:, 0] < x_lo) | (x[:, 0] > x_hi)) & (x[:, 1] > y_top))
     return out
 
 

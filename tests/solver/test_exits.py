@@ -1,5 +1,7 @@
 """Open sides (fpsi_jax.solver.exits): a particle that crosses one is parked, counted and
 out of every pair; crossing a closed side stays an error (tests/run/test_driver.py)."""
+import dataclasses
+
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -87,3 +89,42 @@ def test_the_rest_of_the_fluid_does_not_feel_the_parked_particle(shot):
     rho = np.asarray(f.rho)[keep]
     assert np.all(np.abs(rho / 1000.0 - 1.0) < 0.02)
     assert np.max(np.asarray(f.v)[keep, 1]) < 0.5
+
+
+def test_over_the_walls_counts_as_through_the_open_top():
+    # boundary particles span x in [0, 1] up to y = 1.5; the domain's top is at 2
+    phys = dataclasses.replace(_phys(("top",)), rim=(0.0, 1.0, 1.5))
+    x = jnp.array([[1.05, 1.6],      # beside the right wall, above its top: went over
+                   [-0.05, 1.6],     # the same on the left
+                   [1.05, 1.4],      # beside the wall below its top: not a way out
+                   [0.5, 1.9],       # above the tank between the walls: still in
+                   [0.5, 2.0]])      # through the domain's top
+    got = exits.crossed_open_side(phys, x)
+    np.testing.assert_array_equal(np.asarray(got), [True, True, False, False, True])
+
+
+def test_the_rim_is_the_boundary_top_unless_a_particle_starts_beyond_it():
+    sc = cases.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1, t_end=0.03)
+    xb = sc.boundary.x
+    assert Physics.for_scene(sc).rim == pytest.approx(
+        (xb[:, 0].min(), xb[:, 0].max(), xb[:, 1].max()))
+    sc.fluid.x[0] = (xb[:, 0].max() + 0.01, xb[:, 1].max() + 0.01)
+    assert Physics.for_scene(sc).rim is None
+    sc.open_sides = ()
+    assert Physics.for_scene(sc).rim is None
+
+
+def test_a_splash_over_a_wall_leaves_through_the_open_top():
+    """A particle thrown sideways above the wall's top lands outside the tank: it is
+    parked when it passes the wall, not an error when it reaches the domain's floor."""
+    sc = cases.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1, t_end=0.08)
+    top = int(np.argmax(sc.fluid.x[:, 1] + 1e-3 * sc.fluid.x[:, 0]))
+    x_hi, y_top = sc.boundary.x[:, 0].max(), sc.boundary.x[:, 1].max()
+    sc.fluid.x[top] = (sc.fluid.x[top, 0], y_top + 0.05)
+    sc.fluid.v = np.zeros_like(sc.fluid.x)
+    sc.fluid.v[top] = (6.0, 0.0)
+    res = simulate(sc, progress=False, rho_tolerance=0.9)
+    t_out = np.asarray(res.state.fluid.t_out)
+    assert np.flatnonzero(t_out >= 0).tolist() == [top]
+    t_cross = (x_hi - sc.fluid.x[top, 0]) / 6.0        # passes the wall's outer particles
+    assert abs(t_out[top] - t_cross) <= 2 * float(res.params.dt)
