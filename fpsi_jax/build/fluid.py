@@ -71,12 +71,14 @@ def fluid_polygon(vertices, dx, rho0, c0, h, surface_y=None, gamma=7.0, g=G):
     return fluid_block(polygon_lattice(vertices, dx), dx, rho0, c0, h, surface_y, gamma, g)
 
 
-def fluid_among_grains(fluid, x_grain, r_grain, voidage, eps_floor=0.0):
+def fluid_among_grains(fluid, x_grain, r_grain, voidage, eps_floor=0.0, walls=None):
     """Fluid particles among grains get the mass ε ρ0 Δx² of the fluid their lattice cell
     holds (ε the voidage the grains leave them, W2, at least ``eps_floor``), so the start is
-    at rest."""
+    at rest. ``walls``: the scene's DEM walls (a WallBlock) when the step counts the grains'
+    wall images in the voidage (Physics.wall_images, fpi.wall_images)."""
+    w = None if walls is None else (walls.a, walls.b, walls.sides())
     eps = np.asarray(fpi.voidage_at(kernels.get("wendland"), fluid.x, fluid.h, x_grain,
-                                    np.pi * np.asarray(r_grain) ** 2, voidage), float)
+                                    np.pi * np.asarray(r_grain) ** 2, voidage, w), float)
     eps = np.maximum(eps, eps_floor)
     fluid.mass = fluid.mass * eps
     return fluid

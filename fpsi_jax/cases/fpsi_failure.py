@@ -22,7 +22,7 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
                  dx=0.0024, dx_boundary=0.0015, h0=0.003, mu=1.0e-3, c0=None, kn=1.021e9,
                  ks=1.024e7, friction=0.3, beta_n=0.3, voidage="area", fpi_pressure="shared",
                  r_clump=0.01, eps_xsph=0.5, alpha_av=0.02, delta=0.1, eps_floor=0.0,
-                 t_end=0.2) -> Scene:
+                 wall_images=True, t_end=0.2) -> Scene:
     """W6.3: the two-phase dam break with the gate replaced by a bonded structure fixed at
     its foot (ρ 1100), bond tensile strength 4e4 Pa (``case`` 'I') or 2e4 Pa ('II'),
     contact stiffness k_n 1.021e9, k_s 1.024e7 N/m (grains and structure alike).
@@ -45,7 +45,7 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
     parts = two_phase_parts(
         a, water_height, tank_length, tank_height, d, rho_grain, grain_mass, depth, dx,
         dx_boundary, h0, mu, c0, kn, ks, friction, beta_n, voidage, r_clump, eps_xsph,
-        alpha_av, delta, eps_floor)
+        alpha_av, delta, eps_floor, wall_images)
     ds = d_structure
     xs = square_packing(a, 0.0, thickness, water_height, ds)
     wall = disc_block(xs, ds / 2, rho_structure, mass_model="lattice", packing="square")
@@ -65,5 +65,6 @@ def fpsi_failure(*, case="I", sigma_c=None, tau_c=None, thickness=0.01, d_struct
         t_end=t_end, open_sides=("top",),
         options={"fpi": True, "fsi": "extrapolated", "voidage": voidage,
                  "boundary_pressure": "extrapolated", "artificial_viscosity": True,
-                 "delta_sph": True, "eps_floor": eps_floor, "fpi_pressure": fpi_pressure},
+                 "delta_sph": True, "eps_floor": eps_floor, "fpi_pressure": fpi_pressure,
+                 "wall_images": bool(wall_images)},
         builder_kwargs=dict(sigma_c=sigma_c, tau_c=tau_c, c0=parts.c0, n_grain=parts.n_grain))

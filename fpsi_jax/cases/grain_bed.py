@@ -108,7 +108,7 @@ def grain_bed(*, width=0.0504, water_height=0.1008, d=0.0024, layers=4, packing=
               rho_grain=2500.0, dx=0.0024, dx_boundary=0.0015, h0=0.003, mu=1.0e-3,
               c0=None, kn=1.021e9, ks=1.024e7, friction=0.3, beta_n=0.3,
               voidage="area", eps_floor=0.0, fpi_pressure="shared", drag="sphere",
-              alpha_av=0.02, delta=0.1, t_end=2.0) -> Scene:
+              alpha_av=0.02, delta=0.1, wall_images=True, t_end=2.0) -> Scene:
     """A bed of grains (d 2.4 mm, ρ 2500: the two-phase dam break's) on the floor of a
     closed tank ``width`` wide (21 d: the long hexagonal rows touch both walls, so the bed
     cannot slide) under ``water_height`` of still water (42 rows of 2.4 mm), started
@@ -121,7 +121,8 @@ def grain_bed(*, width=0.0504, water_height=0.1008, d=0.0024, layers=4, packing=
     2D bed), floored at ``eps_floor`` (0: none); fluid particles among grains get the mass
     ε ρ0 Δx² of their cell, so the start is hydrostatic. The grains' pressure force is
     their part of the cells' pressure forces with the mixture's continuity
-    (``fpi_pressure`` 'shared', fpi.py: energy-conserving). W6.2.2's numerical parameters
+    (``fpi_pressure`` 'shared', fpi.py: energy-conserving); with ``wall_images`` the grains'
+    images in the walls count in the voidage (fpi.wall_images). W6.2.2's numerical parameters
     (fluid 2.4 mm fitted to the width, boundary 1.5 mm, h 3 mm), contacts of W6.3."""
     check_positive(width=width, water_height=water_height, d=d, layers=layers,
                    rho_grain=rho_grain, dx=dx, dx_boundary=dx_boundary, h0=h0, kn=kn)
@@ -147,8 +148,9 @@ def grain_bed(*, width=0.0504, water_height=0.1008, d=0.0024, layers=4, packing=
     sp = sph_params(1000.0, c0, mu, dx, 0.01, 0.5, delta, alpha=alpha_av)
     fluid = hydrostatic_fluid(lattice(0.0, 0.0, width, water_height, dx), 1000.0, c0,
                               sp.gamma, surface, dx=dx, h=h0)
-    fluid = fluid_among_grains(fluid, grains.x, grains.radius, voidage, eps_floor)
     box = tank(width, 1.5 * water_height, dx_boundary, h0, 1000.0, dem_walls=True, lid=True)
+    fluid = fluid_among_grains(fluid, grains.x, grains.radius, voidage, eps_floor,
+                               box.walls if wall_images else None)
     lo, hi = domain((0.0, 0.0), (box.width, box.height), box.pad)
     return Scene(
         name="grain_bed",
@@ -159,7 +161,7 @@ def grain_bed(*, width=0.0504, water_height=0.1008, d=0.0024, layers=4, packing=
         options={"fpi": True, "voidage": voidage, "eps_floor": eps_floor,
                  "fpi_pressure": fpi_pressure, "drag": drag,
                  "boundary_pressure": "extrapolated", "artificial_viscosity": True,
-                 "delta_sph": True},
+                 "delta_sph": True, "wall_images": bool(wall_images)},
         builder_kwargs=dict(c0=c0, dx=dx, surface=surface, n_grain=grains.n))
 
 

@@ -27,7 +27,7 @@ def sedimentation(*, width=0.02, height=0.06, d=0.0025, rho_grain=1250.0, rho_fl
                   mu=0.01, x0=0.01, y0=0.04, dx=0.0015, dx_boundary=0.00125, h0=0.003,
                   c0=None, kn=1.0e4, friction=0.3, beta_n=0.5,
                   voidage="area", drag="cylinder", r_clump=0.01, eps_xsph=0.5, delta=0.1, x64=False,
-                  t_end=1.0) -> Scene:
+                  wall_images=True, t_end=1.0) -> Scene:
     """One grain (disc d = 2.5 mm, ρ 1250) released at rest at (``x0``, ``y0``) = (0.01,
     0.04) m in a ``width`` × ``height`` = 0.02 × 0.06 m box of fluid (ρ 1000, μ 0.01 Pa·s);
     W6.2.1's numerical parameters: fluid spacing 1.5 mm, boundary 1.25 mm, Wendland h 3 mm.
@@ -39,7 +39,8 @@ def sedimentation(*, width=0.02, height=0.06, d=0.0025, rho_grain=1250.0, rho_fl
     buoyant; with a small ``d`` (ε → 1) it is the terminal-velocity case. ``dx`` is fitted
     to fill ``width`` with whole columns (``builder_kwargs`` records the fitted value).
     ``drag``: 'cylinder' (default: the disc is a cylinder per unit length, fpi.py) or
-    'sphere' (the seed's W19–W23)."""
+    'sphere' (the seed's W19–W23). ``wall_images``: the grain's images in the walls count in
+    the voidage (fpi.wall_images)."""
     check_positive(width=width, height=height, d=d, rho_grain=rho_grain, rho_fluid=rho_fluid,
                    mu=mu, dx=dx, dx_boundary=dx_boundary, h0=h0, kn=kn, t_end=t_end)
     check_voidage(voidage)
@@ -57,8 +58,9 @@ def sedimentation(*, width=0.02, height=0.06, d=0.0025, rho_grain=1250.0, rho_fl
     grain = disc_block(np.array([[x0, y0]]), d / 2, rho_grain)
     grain.grain = np.array([True])
     grain.structure = np.array([False])
-    fluid = fluid_among_grains(fluid, grain.x, grain.radius, voidage)
     box = tank(width, height, dx_boundary, h0, rho_fluid, dem_walls=True, lid=True)
+    fluid = fluid_among_grains(fluid, grain.x, grain.radius, voidage,
+                               walls=box.walls if wall_images else None)
     lo, hi = box.domain(headroom=0.5)
     return Scene(
         name="sedimentation",
@@ -67,7 +69,8 @@ def sedimentation(*, width=0.02, height=0.06, d=0.0025, rho_grain=1250.0, rho_fl
         domain_lo=lo, domain_hi=hi, v_max=v_max,
         fluid=fluid, boundary=box.boundary, solid=grain, walls=box.walls, t_end=t_end, open_sides=("top",),
         options={"fpi": True, "voidage": voidage, "drag": drag, "delta_sph": True,
-                 "boundary_pressure": "extrapolated", "x64": x64},
+                 "boundary_pressure": "extrapolated", "x64": x64,
+                 "wall_images": bool(wall_images)},
         builder_kwargs=dict(dx=dx, c0=c0))
 
 

@@ -45,7 +45,8 @@ class TwoPhaseParts:
 
 def two_phase_parts(a, water_height, tank_length, tank_height, d, rho_grain, grain_mass,
                     depth, dx, dx_boundary, h0, mu, c0, kn, ks, friction, beta_n,
-                    voidage, r_clump, eps_xsph, alpha_av, delta, eps_floor) -> TwoPhaseParts:
+                    voidage, r_clump, eps_xsph, alpha_av, delta, eps_floor,
+                    wall_images=True) -> TwoPhaseParts:
     """The parts the two-phase dam break and ``fpsi_failure`` share (:class:`TwoPhaseParts`)."""
     check_positive(a=a, water_height=water_height, tank_length=tank_length,
                    tank_height=tank_height, d=d, rho_grain=rho_grain, grain_mass=grain_mass,
@@ -66,8 +67,9 @@ def two_phase_parts(a, water_height, tank_length, tank_height, d, rho_grain, gra
     surface = round(water_height / dx) * dx
     fluid = hydrostatic_fluid(lattice(0.0, 0.0, a, water_height, dx), 1000.0, c0, sp.gamma,
                               surface, dx=dx, h=h0)
-    fluid = fluid_among_grains(fluid, grains.x, grains.radius, voidage, eps_floor)
     box = tank(tank_length, tank_height, dx_boundary, h0, 1000.0, dem_walls=True)
+    fluid = fluid_among_grains(fluid, grains.x, grains.radius, voidage, eps_floor,
+                               box.walls if wall_images else None)
     dem = DemParams(kn=kn, ks=ks, mu=friction, beta_n=beta_n, beta_s=beta_n)
     return TwoPhaseParts(sph=sp, fluid=fluid, grains=grains, tank=box, dem=dem, v_max=v_max,
                          c0=c0, n_grain=n_grain)
@@ -80,7 +82,7 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
                         mu=1.0e-3, c0=None, kn=1.021e9, ks=1.024e7, friction=0.3,
                         beta_n=0.3, voidage="area", fpi_pressure="shared", r_clump=0.01,
                         eps_xsph=0.5, alpha_av=0.02, delta=0.1, eps_floor=0.0,
-                        t_end=0.2) -> Scene:
+                        wall_images=True, t_end=0.2) -> Scene:
     """W6.2.2 after Sun, Sakai & Yamada (2013): a water column ``a`` = 0.05 m wide with a bed
     of grains (d 2.4 mm, ρ 2500) at its foot, behind a gate lifted at ``gate_speed`` =
     0.68 m/s from t = 0; W's numerical parameters (fluid 2.4 mm, fitted to the column:
@@ -108,7 +110,7 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
     parts = two_phase_parts(
         a, water_height, tank_length, tank_height, d, rho_grain, grain_mass, depth, dx,
         dx_boundary, h0, mu, c0, kn, ks, friction, beta_n, voidage, r_clump, eps_xsph,
-        alpha_av, delta, eps_floor)
+        alpha_av, delta, eps_floor, wall_images)
     dg = dx_boundary
     xgate = square_packing(a, 0.0, gate_columns * dg, water_height + 4 * dg, dg)
     gate = disc_block(xgate, dg / 2, 1000.0, mass_model="lattice", packing="square")
@@ -126,5 +128,6 @@ def two_phase_dam_break(*, a=0.05, water_height=0.1, tank_length=0.2, tank_heigh
         walls=parts.tank.walls, t_end=t_end, open_sides=("top",),
         options={"fpi": True, "fsi": "extrapolated", "voidage": voidage,
                  "boundary_pressure": "extrapolated", "artificial_viscosity": True,
-                 "delta_sph": True, "eps_floor": eps_floor, "fpi_pressure": fpi_pressure},
+                 "delta_sph": True, "eps_floor": eps_floor, "fpi_pressure": fpi_pressure,
+                 "wall_images": bool(wall_images)},
         builder_kwargs=dict(c0=parts.c0, n_grain=parts.n_grain))

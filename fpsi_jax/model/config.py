@@ -100,7 +100,8 @@ class Parking:
 
 #: Physics options that are switches (true/false)
 SWITCHES = ("xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
-            "artificial_viscosity", "wall_repulsion", "x64", "fpi", "lubrication")
+            "artificial_viscosity", "wall_repulsion", "x64", "fpi", "lubrication",
+            "wall_images")
 #: numeric Physics options: (lo, hi, lo_open, hi_open, integer)
 RANGES = {"h_margin": (1.0, 2.0, False, False, False),
           "rho_tolerance": (0.0, 1.0, True, False, False),
@@ -166,9 +167,9 @@ class Physics:
       anticlump_boundary   also on fluid–boundary pairs (K advises against: off)
       variable_h           Dh/Dt = −h/(n_d ρ) Dρ/Dt (K37)
       delta_sph            δ-SPH density diffusion (off by default)
-      density_diffusion    what δ-SPH diffuses: 'molteni' (default: ρ_j − ρ_i; Molteni &
-                           Colagrossi 2009) or 'fourtakas' (ρ_j − ρ_i less its hydrostatic
-                           part; Fourtakas et al. 2019), see sph.delta_pairs
+      density_diffusion    what δ-SPH diffuses: 'fourtakas' (default: ρ_j − ρ_i less its
+                           hydrostatic part; Fourtakas et al. 2019) or 'molteni' (ρ_j − ρ_i;
+                           Molteni & Colagrossi 2009, the seeds'), see sph.delta_pairs
       artificial_viscosity Monaghan α-viscosity (off by default; not in the seeds)
       wall_repulsion       short-range backstop against fluid creeping through a fixed wall
                            (sph.wall_repulsion_scalar; on by default, zero at rest; not in
@@ -210,6 +211,9 @@ class Physics:
                            the mixture's continuity: energy-conserving, for packed beds);
                            see fpi.py
       lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)
+      wall_images          the grains' mirror images in the one-sided DEM walls count in the
+                           fluid's solid fraction (fpi.wall_images): the part of a grain's
+                           kernel inside a wall is put back on the fluid's side
 
     How the SPH pair sums are cut (no effect on the result beyond float round-off):
       pair_block           rows per block of the density and momentum pair passes and of the
@@ -239,7 +243,7 @@ class Physics:
     anticlump_boundary: bool = False
     variable_h: bool = True
     delta_sph: bool = False
-    density_diffusion: DensityDiffusion = DensityDiffusion.MOLTENI
+    density_diffusion: DensityDiffusion = DensityDiffusion.FOURTAKAS
     artificial_viscosity: bool = False
     wall_repulsion: bool = True
     wall_range: float = 0.0
@@ -263,6 +267,7 @@ class Physics:
     drag: Drag = Drag.SPHERE
     eps_floor: float = 0.0
     lubrication: bool = True
+    wall_images: bool = True
     domain_lo: tuple | None = None
     domain_hi: tuple | None = None
     open_sides: tuple = ()
@@ -274,7 +279,8 @@ class Physics:
                "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
                "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section",
                "dem_skin", "fsi", "dem_substeps", "fpi", "voidage", "lubrication",
-               "fpi_pressure", "eps_floor", "drag", "pair_block", "density_diffusion")
+               "fpi_pressure", "eps_floor", "drag", "pair_block", "density_diffusion",
+               "wall_images")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,

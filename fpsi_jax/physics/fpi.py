@@ -87,9 +87,11 @@ def to_fluid(values, idx, valid, n_fluid):
 
 
 def solid_fraction(rows, vol_p, n_fluid):
-    """1 − ε₂ at each fluid particle, Σ_p V_p W_pf (discrete W2), and each grain row's
-    terms V_p W_pf (zero where not valid): (n_f,), (n_g, K)."""
-    share = jnp.where(rows.valid, rows.w * vol_p[:, None], 0.0)
+    """1 − ε₂ at each fluid particle, Σ_p V_p W_pf (discrete W2, with the grains' wall
+    images: :func:`grain_rows`), and each grain row's terms V_p W_pf (zero where not
+    valid): (n_f,), (n_g, K)."""
+    w = rows.w if rows.ws is None else rows.ws
+    share = jnp.where(rows.valid, w * vol_p[:, None], 0.0)
     return to_fluid(share, rows.idx, rows.valid, n_fluid), share
 
 
@@ -220,8 +222,10 @@ def reaction_on_fluid(force_p, weights, idx, n_fluid):
 # --- the coupling, on the grain rows of the SPH list --------------------------------------
 class GrainRows(NamedTuple):
     """Each grain's fluid neighbours: indices into the fluid (padding n_f), mask, W_pf,
-    V_f = m_f/(ε_f ρ_f) (the particle's share of the mixture volume), x_pf = x_p − x_f and
-    F_pf = (1/r) dW/dr (so ∇_p W_pf = x_pf F_pf)."""
+    V_f = m_f/(ε_f ρ_f) (the particle's share of the mixture volume), x_pf = x_p − x_f,
+    F_pf = (1/r) dW/dr (so ∇_p W_pf = x_pf F_pf) and ``ws``, the weight of the grain in
+    the fluid's solid fraction: W_pf plus the kernel values of its wall images
+    (:func:`wall_images`; W_pf where there are none)."""
 
     idx: object
     valid: object
@@ -229,11 +233,47 @@ class GrainRows(NamedTuple):
     vol: object
     dx: object
     f: object
+    ws: object = None
 
 
-def grain_rows(kern, x_f, h_f, vol_f, x_p, idx_g, n_fluid) -> GrainRows:
+def wall_images(x_p, a, b, side):
+    """Mirror images of the grains in the one-sided DEM walls a[k] → b[k] (``side`` ±1, the
+    fluid's side; scene.WallBlock): x'_pk = x_p − 2 s_pk n_k, with n_k the wall's inward
+    normal and s_pk = (x_p − a_k)·n_k > 0 the grain's distance from the wall's line, for the
+    walls whose segment the grain projects onto. Returns ((n_g, W, 2) images, (n_g, W)
+    mask); two-sided walls (side 0) have none.
+
+    Why: the voidage sum 1 − ε_f = Σ_p V_p W(x_f − x_p) gives each grain its whole kernel
+    mass only where its support lies in the fluid. Next to a wall part of it lies inside
+    the wall, where no fluid particle is, so the fluid sees less solid than the bed holds
+    (a bed on a floor: 6.8 %) and the pore fluid under the bottom row sees half a bed.
+    The image puts that part back on the fluid's side (the reflection of a kernel's
+    outside part is its image's inside part), as ghost particles do for a wall in SPH:
+    Σ_f V_f (W_pf + W_p'f) = 1 for a grain on a floor in a uniform fluid. The images
+    only enter the solid fraction (the voidage, and the weights of the 'shared'
+    pressure force and of J in :func:`cell_share_on_grains`, :func:`mixture_flux`), so the
+    force that goes to an image is the real grain's, unreflected: the image carries the
+    grain's share of the pressure field continued into the wall (hydrostatic: the same
+    ρ g on both sides), and force and flux weights stay each other's adjoints. A grain in
+    a corner gets the two wall images but not the corner's double reflection."""
+    dtype = x_p.dtype
+    a, b, side = jnp.asarray(a, dtype), jnp.asarray(b, dtype), jnp.asarray(side, dtype)
+    ab = b - a
+    t = ab / jnp.linalg.norm(ab, axis=-1, keepdims=True)
+    n_in = side[:, None] * jnp.stack([-t[:, 1], t[:, 0]], axis=-1)       # (W, 2)
+    rel = x_p[:, None, :] - a[None]
+    along = jnp.sum(rel * ab[None], axis=-1) / jnp.sum(ab * ab, axis=-1)
+    dist = jnp.sum(rel * n_in[None], axis=-1)                             # (n_g, W)
+    on = (side[None] != 0) & (along >= 0.0) & (along <= 1.0) & (dist > 0.0)
+    return x_p[:, None, :] - 2.0 * dist[..., None] * n_in[None], on
+
+
+def grain_rows(kern, x_f, h_f, vol_f, x_p, idx_g, n_fluid, images=None) -> GrainRows:
     """Kernel values W(|x_p − x_f|, h_f) (the fluid particle's h) of the grain rows ``idx_g``,
-    whose entries below n_fluid are fluid neighbours."""
+    whose entries below n_fluid are fluid neighbours. ``images`` (:func:`wall_images`) add
+    their kernel values W(|x'_pk − x_f|, h_f) to ``ws``: an image is farther from every
+    fluid particle on the wall's fluid side than its grain, so the grain's row holds all of
+    its image's neighbours."""
     valid = idx_g < n_fluid
     j = jnp.where(valid, idx_g, n_fluid)
     nbr = gather(jnp.concatenate([x_f, h_f[:, None], vol_f[:, None]], axis=1), j)
@@ -241,7 +281,13 @@ def grain_rows(kern, x_f, h_f, vol_f, x_p, idx_g, n_fluid) -> GrainRows:
     r2 = jnp.sum(dx * dx, axis=-1)
     w = jnp.where(valid, kern.w(safe_sqrt(r2), nbr[..., 2]), 0.0)
     f = jnp.where(valid, kern.grad_factor(r2, nbr[..., 2]), 0.0)
-    return GrainRows(j, valid, w, jnp.where(valid, nbr[..., 3], 0.0), dx, f)
+    ws = w
+    if images is not None:
+        x_img, on = images
+        for k in range(x_img.shape[1]):
+            r_k = safe_sqrt(jnp.sum((x_img[:, None, k, :] - nbr[..., 0:2]) ** 2, axis=-1))
+            ws = ws + jnp.where(valid & on[:, k:k + 1], kern.w(r_k, nbr[..., 2]), 0.0)
+    return GrainRows(j, valid, w, jnp.where(valid, nbr[..., 3], 0.0), dx, f, ws)
 
 
 def pressure_gradient(rows: GrainRows, p_f):
@@ -328,12 +374,14 @@ def lubrication_on_discs(x, v, radius, wet, idx, mu, gap_min, cutoff, rows=None)
     return jnp.stack([fx, fy], axis=-1)
 
 
-def voidage_at(kern, x_f, h_f, x_p, vol_p, mode=Voidage.AREA):
+def voidage_at(kern, x_f, h_f, x_p, vol_p, mode=Voidage.AREA, walls=None):
     """The fluid voidage at ``x_f`` for grains at ``x_p`` by brute force over all pairs, with
     the same kernel sums as the step (for scene builders: fluid particles among grains get
-    mass ε ρ0 Δx², so that their volume m/(ερ) is their lattice cell)."""
+    mass ε ρ0 Δx², so that their volume m/(ερ) is their lattice cell). ``walls`` (a, b,
+    side) of the DEM walls: the grains' wall images count (:func:`wall_images`)."""
     x_f, h_f, x_p = jnp.asarray(x_f), jnp.asarray(h_f), jnp.asarray(x_p)
     n_f = x_f.shape[0]
     idx = jnp.broadcast_to(jnp.arange(n_f), (x_p.shape[0], n_f))
-    rows = grain_rows(kern, x_f, h_f, jnp.ones(n_f, x_f.dtype), x_p, idx, n_f)
-    return fluid_voidage(rows.w, jnp.asarray(vol_p), rows.idx, rows.valid, n_f, mode)
+    images = None if walls is None else wall_images(x_p, *walls)
+    rows = grain_rows(kern, x_f, h_f, jnp.ones(n_f, x_f.dtype), x_p, idx, n_f, images)
+    return fluid_voidage(rows.ws, jnp.asarray(vol_p), rows.idx, rows.valid, n_f, mode)

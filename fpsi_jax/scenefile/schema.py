@@ -235,7 +235,7 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
       Key("boundary_pressure", "str", "", "extrapolated", "pressure of the fixed boundary "
           "particles", choices=("fixed", "extrapolated")),
       Key("delta_sph", "bool", "", None, "δ-SPH density diffusion (default: fluid.delta > 0)"),
-      Key("density_diffusion", "str", "", "molteni", "what δ-SPH diffuses: all density "
+      Key("density_diffusion", "str", "", "fourtakas", "what δ-SPH diffuses: all density "
           "differences (Molteni & Colagrossi 2009) or the same less their hydrostatic part "
           "(Fourtakas et al. 2019)", choices=("molteni", "fourtakas")),
       Key("artificial_viscosity", "bool", "", None, "Monaghan viscosity (default: "
@@ -248,6 +248,9 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
           "or a disc as a cylinder per unit length", choices=("sphere", "cylinder")),
       Key("eps_floor", "float", "", 0.0, "lower bound of the fluid voidage", lo=0.0,
           hi=1.0, hi_open=True),
+      Key("wall_images", "bool", "", True, "the grains' mirror images in the DEM walls count "
+          "in the voidage (the part of a grain's kernel inside a wall goes back to the "
+          "fluid's side)"),
       Key("bond_section", "str", "", "slab", "bond cross-section",
           choices=("slab", "circular")),
       Key("kernel", "str", "", "wendland", "SPH kernel", choices=("wendland", "cubic")),

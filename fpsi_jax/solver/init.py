@@ -93,10 +93,12 @@ def initial_voidage(phys: Physics, state: State):
     scene's fluid densities are intrinsic ρ; builders give the particles mass ε ρ0 Δx²."""
     f, fp = state.fluid, state.fpi
     n_sph = state.nbrs.idx.shape[0] - fp.idx.shape[0]
+    x_p = state.solid.x[fp.idx]
     rows = fpi.grain_rows(kernels.get(phys.kernel), f.x, f.h, f.mass / f.rho,
-                          state.solid.x[fp.idx], state.nbrs.idx[n_sph:], phys.n_fluid)
+                          x_p, state.nbrs.idx[n_sph:], phys.n_fluid,
+                          stages.grain_images(phys, state, x_p))
     r = state.solid.radius[fp.idx]
-    eps = fpi.fluid_voidage(rows.w, jnp.pi * r * r, rows.idx, rows.valid, phys.n_fluid,
+    eps = fpi.fluid_voidage(rows.ws, jnp.pi * r * r, rows.idx, rows.valid, phys.n_fluid,
                             phys.voidage)
     return jnp.maximum(eps, phys.eps_floor)
 

@@ -350,6 +350,15 @@ def pair_pass(phys: Physics, fam: SphFamily, rho_c_all, fn):
     return over_row_blocks(block, phys.n_fluid, phys.pair_block)
 
 
+def grain_images(phys: Physics, state: State, x_p):
+    """The grains' images in the DEM walls for the voidage (fpi.wall_images), or None
+    (option wall_images off, or no walls)."""
+    if not phys.wall_images or state.walls is None:
+        return None
+    w = state.walls
+    return fpi.wall_images(x_p, w.a, w.b, w.side)
+
+
 def new_level(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c_all,
               dt) -> NewLevel:
     """Continuity (K32) with δ-SPH, ρ' = ρ + dt Dρ/Dt, h' by K37, with grains the voidage at
@@ -382,8 +391,9 @@ def new_level(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c
     if fp is not None:
         with jax.named_scope("fpi.voidage"):
             rows = fpi.grain_rows(kernels.get(phys.kernel), f.x, f.h, f.mass / rho_c_new,
-                                  fam.x_p, fam.idx_g, phys.n_fluid)
-            eps_raw = fpi.fluid_voidage(rows.w, fam.vol_p, rows.idx, rows.valid, phys.n_fluid,
+                                  fam.x_p, fam.idx_g, phys.n_fluid,
+                                  grain_images(phys, state, fam.x_p))
+            eps_raw = fpi.fluid_voidage(rows.ws, fam.vol_p, rows.idx, rows.valid, phys.n_fluid,
                                         phys.voidage)
             eps = jnp.maximum(eps_raw, phys.eps_floor)
         rho_new = rho_c_new / eps
@@ -400,8 +410,9 @@ def mixture_voidage(phys: Physics, state: State, fam: SphFamily):
     f, fp = state.fluid, state.fpi
     with jax.named_scope("fpi.voidage"):
         rows = fpi.grain_rows(kernels.get(phys.kernel), f.x, f.h, f.mass / (fp.eps * f.rho),
-                              fam.x_p, fam.idx_g, phys.n_fluid)
-        eps_raw = fpi.fluid_voidage(rows.w, fam.vol_p, rows.idx, rows.valid, phys.n_fluid,
+                              fam.x_p, fam.idx_g, phys.n_fluid,
+                              grain_images(phys, state, fam.x_p))
+        eps_raw = fpi.fluid_voidage(rows.ws, fam.vol_p, rows.idx, rows.valid, phys.n_fluid,
                                     phys.voidage)
         eps = jnp.maximum(eps_raw, phys.eps_floor)
         flux = fpi.mixture_flux(rows, eps, f.v, fam.v_p, fam.vol_p, phys.n_fluid)

@@ -456,7 +456,7 @@ def test_newton_third_law_matches_reference_sums():
     for i in range(n):
         nb = [int(j) for j in c["idx"][i] if j < n]
         ref = ref_terms(i, nb, c["x"], c["v"], c["h"], c["m"], c["rho_old"], c["rho"], p, n,
-                        spd)
+                        spd, gravity=G)             # the default δ-SPH: Fourtakas'
         a_ref = ref["pres"] + ref["clump"] + ref["visc"] + ref["av"]
         np.testing.assert_allclose(np.asarray(acc[i]), a_ref, rtol=1e-9,
                                    atol=1e-11 * np.abs(a_ref).max())
