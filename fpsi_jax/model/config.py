@@ -169,7 +169,7 @@ class Physics:
       delta_sph            δ-SPH density diffusion (off by default)
       density_diffusion    what δ-SPH diffuses: 'fourtakas' (default: ρ_j − ρ_i less its
                            hydrostatic part; Fourtakas et al. 2019) or 'molteni' (ρ_j − ρ_i;
-                           Molteni & Colagrossi 2009, the seeds'), see sph.delta_pairs
+                           Molteni & Colagrossi 2009), see sph.delta_pairs
       artificial_viscosity Monaghan α-viscosity (off by default; not in the seeds)
       wall_repulsion       short-range backstop against fluid creeping through a fixed wall
                            (sph.wall_repulsion_scalar; on by default, zero at rest; not in
