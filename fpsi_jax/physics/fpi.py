@@ -43,6 +43,11 @@ Choices the seeds leave open (docs/physics.md, docs/design.md):
   work on fluid and grains equals the change of the fluid's internal energy pair by pair:
   the coupling conserves energy, which is what keeps a packed bed's pore fluid at rest
   (docs/physics.md, Packed beds).
+* Walls (Physics.wall_images). The voidage sum gives a grain its whole kernel mass only
+  where its support lies in the fluid; next to a wall the part inside the wall is put back
+  by the grain's mirror image in each one-sided DEM wall (:func:`wall_images`), which
+  enters the solid fraction only (a bed on a floor: the fluid sees its solid to 0.4 %
+  instead of 7 % short).
 * V_p is the disc's area πR² per unit thickness, the same as the disc's mass ρ_p πR². Under
   the seed's law (Physics.drag = 'sphere') the force per unit mass, and with it the terminal
   velocity, is then exactly that of a sphere of diameter d.
