@@ -6,10 +6,11 @@ the walls (beside the boundary particles, above the highest of them), is *parked
 keeps its slot in every array (the compiled shapes never change) but is moved to its own
 spot on the parking lattice above the domain (:class:`~fpsi_jax.model.config.Parking`),
 farther than any list radius from everything, so it drops out of every neighbour list and
-pair sum; its velocity and accelerations are zeroed and kept so. ``t_out`` records when it left (−1: still in);
-its mass is the scene's, so the mass that left is Σ m over ``t_out ≥ 0``. A disc that leaves
-becomes kinematic (``fixed``) and its intact bonds break with mode 3. Crossing a closed side
-stays an error (solver.health). Scenes without an open side trace none of this.
+pair sum; its velocity and accelerations are zeroed and kept so. ``t_out`` records when it
+left (−1: still in); its mass is the scene's, so the mass that left is Σ m over
+``t_out ≥ 0``. A disc that leaves becomes kinematic (``fixed``) and its intact bonds break
+with mode 3. Crossing a closed side stays an error (solver.health). Scenes without an open
+side trace none of this.
 """
 from __future__ import annotations
 
