@@ -27,8 +27,9 @@ class NeighborConfig:
     """Static settings of one jax-md neighbour list (see ``neighbors.py``).
 
     r_cut   interaction cut-off (2·h_max for SPH)
-    skin    extra radius (jax-md ``dr_threshold``); the list is rebuilt only when a particle
-            has moved more than skin/2 since the last build
+    skin    extra radius (jax-md ``dr_threshold``); the list is rebuilt only when the
+            particles' displacements since the last build no longer fit in a circle of
+            radius skin/2 (neighbors.moved_past_half_skin)
     capacity_multiplier, extra_capacity   jax-md allocation slack; grown on overflow
     min_neighbors, min_cell_capacity   room per row and per cell at least (0: what the
                   allocation finds × the multiplier); set when a list overflowed

@@ -182,7 +182,8 @@ def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, w
         th_new = s.theta + dt * w_half
     with jax.named_scope("neighbors.dem_update"):
         old = state.solid_nbrs
-        nbrs, rebuilt, need = neighbors.update(phys.dem_neighbors, old, x_new)
+        nbrs, rebuilt, need = neighbors.update(phys.dem_neighbors, old, x_new,
+                                               about_centre=False)
         shear = jax.lax.cond(rebuilt, dem.remap_history, lambda o, h, n: h,
                              old.idx, s.shear, nbrs.idx)
     st = state.status

@@ -130,7 +130,7 @@ def test_update_counts_the_neighbours_an_overflowed_list_cut_and_grow_fits_them(
     cfg = dataclasses.replace(cfg, extra_capacity=8)      # cells with room to spare
     nbrs = neighbors.allocate(cfg, xs + jnp.asarray(cfg.origin, xs.dtype))
     short = nbrs.set(idx=nbrs.idx[:, :neighbors.capacity(nbrs) - 16])
-    step = jnp.asarray([0.6 * cfg.skin, 0.0], xs.dtype)
+    step = jnp.zeros_like(xs).at[0, 0].set(1.2 * cfg.skin)     # one particle past the skin
     moved = xs + jnp.asarray(cfg.origin, xs.dtype) + step
     new, rebuilt, need = neighbors.update(cfg, short, moved)
     assert bool(rebuilt)
@@ -180,16 +180,68 @@ def test_grow_after_a_cell_overflow_grows_the_cells_to_their_need():
 
 
 def test_update_rebuilds_only_past_half_the_skin():
+    """One particle moved while the others stand still: the displacements fit in a circle
+    of radius skin/2 (about their bounding box's centre) until it has moved a whole skin."""
     import jax.numpy as jnp
     cfg, xs, nbrs = _dam_break_list()
-    d = jnp.zeros_like(xs).at[7, 0].set(0.49 * cfg.skin)
+    d = jnp.zeros_like(xs).at[7, 0].set(0.99 * cfg.skin)
     same, rebuilt, _ = neighbors.update(cfg, nbrs, xs + d + jnp.asarray(cfg.origin, xs.dtype))
     assert not bool(rebuilt)
     np.testing.assert_array_equal(np.asarray(same.reference_position), np.asarray(xs))
-    d = d.at[7, 0].set(0.51 * cfg.skin)
+    d = d.at[7, 0].set(1.01 * cfg.skin)
     new, rebuilt, _ = neighbors.update(cfg, nbrs, xs + d + jnp.asarray(cfg.origin, xs.dtype))
     assert bool(rebuilt)
     np.testing.assert_array_equal(np.asarray(new.reference_position), np.asarray(xs + d))
+
+
+def test_moved_past_half_skin_by_hand():
+    """The list holds while every displacement lies within skin/2 of 0 (jax-md's test) or
+    of the centre of the displacements' bounding box."""
+    import jax.numpy as jnp
+    s = 1.0
+    at = lambda *d: bool(neighbors.moved_past_half_skin(s, jnp.asarray(d, jnp.float32)))
+    assert not at([0.0, 0.0], [0.99, 0.0])              # centre (0.495, 0)
+    assert at([0.0, 0.0], [1.01, 0.0])
+    assert not at([0.0, 0.0], [0.7, 0.0], [0.0, 0.7])  # centre (0.35, 0.35): 0.495 from all
+    assert at([0.0, 0.0], [0.72, 0.0], [0.0, 0.72])
+    assert not at([5.0, 3.0], [5.9, 3.0])               # all moved together
+    # three displacements 120° apart on a circle of 0.49: the bounding box's centre
+    # (0.1225, 0) is 0.57 from two of them, but all are within 0.5 of 0
+    r = 0.49
+    assert not at([r, 0.0], [-r / 2, r * 3 ** 0.5 / 2], [-r / 2, -r * 3 ** 0.5 / 2])
+    # jax-md's test alone (the DEM sub-steps): past as soon as one moved more than 0.5
+    jax_md = lambda *d: bool(neighbors.moved_past_half_skin(s, jnp.asarray(d, jnp.float32),
+                                                             about_centre=False))
+    assert not jax_md([0.0, 0.0], [0.49, 0.0])
+    assert jax_md([0.0, 0.0], [0.51, 0.0]) and jax_md([5.0, 3.0], [5.0, 3.0])
+
+
+def test_a_kept_list_holds_every_pair_within_the_cut_off():
+    """Displacements that keep the list (a common drift of 3 skins plus scatter that fits
+    the circle) leave no pair within r_cut out of it: the kept list's pairs within r_cut
+    are those of a fresh rebuild."""
+    import jax.numpy as jnp
+    cfg, xs, nbrs = _dam_break_list()
+    rng = np.random.default_rng(3)
+    n = xs.shape[0]
+    ang = rng.uniform(0, 2 * np.pi, n)
+    rad = 0.499 * cfg.skin * np.sqrt(rng.uniform(0, 1, n))
+    d = np.stack([np.cos(ang), np.sin(ang)], 1) * rad[:, None] + np.array([3 * cfg.skin, -cfg.skin])
+    x_new = xs + jnp.asarray(d, xs.dtype)
+    kept, rebuilt, _ = neighbors.update(cfg, nbrs, x_new + jnp.asarray(cfg.origin, xs.dtype))
+    assert not bool(rebuilt)
+    fresh = neighbors.rebuild(cfg, nbrs, x_new)
+    xn = np.asarray(x_new)
+
+    def close_pairs(idx):
+        i, k = np.nonzero(idx < n)
+        j = idx[i, k]
+        keep = np.sum((xn[i] - xn[j]) ** 2, axis=1) < cfg.r_cut ** 2
+        return set(zip(i[keep].tolist(), j[keep].tolist()))
+
+    want = close_pairs(np.asarray(fresh.idx))
+    assert len(want) > 10 * n
+    assert close_pairs(np.asarray(kept.idx)) == want
 
 
 def test_update_without_a_cell_list_uses_jax_md():
