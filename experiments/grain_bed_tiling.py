@@ -84,9 +84,9 @@ def main():
         ratio = const["mf"] / (rho0 * eps * dx * dx)
         y = x[:, 1]
         ref = rho0 * 9.81 * (H - y)
+        w = windows[n_frame]
         for lo, hi in zip(edges[:-1], edges[1:]):
             m = (y >= lo) & (y < hi)
-            w = windows[n_frame]
             rows.append(dict(t=round(n_frame * EVERY, 3), band_mm=round(lo * 1e3, 1),
                              particles=int(m.sum()), phi_mean=round(float(phi[m].mean()), 4),
                              eps0_over_eps=round(float(ratio[m].mean()), 4),

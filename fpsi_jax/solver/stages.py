@@ -255,8 +255,9 @@ def fluid_kick_drift(phys: Physics, params: Params, state: State) -> State:
 
 
 def fluid_neighbours(phys: Physics, params: Params, state: State) -> State:
-    """Update the SPH family's list at the new positions (rebuilt when a particle moved more
-    than half the skin); an overflow is flagged for the host to redo the chunk."""
+    """Update the SPH family's list at the new positions (rebuilt when the displacements
+    since its build no longer fit in a circle of radius skin/2,
+    neighbors.moved_past_half_skin); an overflow is flagged for the host to redo the chunk."""
     with jax.named_scope("neighbors.update"):
         nbrs, rebuilt, need = neighbors.update(phys.neighbors, state.nbrs,
                                                 sph_positions(state))
