@@ -111,7 +111,8 @@ RANGES = {"h_margin": (1.0, 2.0, False, False, False),
           "dem_skin": (0.0, 2.0, False, False, False),        # × R_max
           "eps_floor": (0.0, 1.0, False, True, False),
           "dem_substeps": (1, 10000, False, False, True),
-          "pair_block": (0, 10**8, False, False, True)}
+          "pair_block": (0, 10**8, False, False, True),
+          "shifting": (0.0, 0.5, False, False, False)}
 
 
 #: rows per block of the SPH pair passes and list rebuild on a CPU (Physics.pair_block)
@@ -164,6 +165,8 @@ class Physics:
     Phases present (n_fluid, n_boundary) and the switches of the SPH model:
       kernel               'wendland' (K28) or 'cubic'
       xsph                 XSPH position correction (K39)
+      shifting             particle shifting coefficient A, δr = −A h² ∇C each step
+                           (sph.shifting_velocity; 0: off, the default; not in the seeds)
       anticlump            anti-clump term R_ij (W45, K38) on fluid–fluid pairs
       anticlump_boundary   also on fluid–boundary pairs (K advises against: off)
       variable_h           Dh/Dt = −h/(n_d ρ) Dρ/Dt (K37)
@@ -275,13 +278,14 @@ class Physics:
     parking: Parking | None = None
     rim: tuple | None = None
     pair_block: int = 0
+    shifting: float = 0.0
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
                "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
                "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section",
                "dem_skin", "fsi", "dem_substeps", "fpi", "voidage", "lubrication",
                "fpi_pressure", "eps_floor", "drag", "pair_block", "density_diffusion",
-               "wall_images")
+               "wall_images", "shifting")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,

@@ -126,6 +126,33 @@ def xsph_scalar(eps, rho_i, rho_j, pr: Pairs):
     return -eps * jnp.where(pr.fluid_j, pr.m_j * pr.w / (0.5 * (rho_i[:, None] + rho_j)), 0.0)
 
 
+def shifting_scalars(vol_j, pr: Pairs):
+    """Particle shifting, per pair: the scalars whose neighbour sums are the gradient of the
+    particle concentration and the divergence of position,
+
+        ∇C_i = Σ_j V_j ∇_iW_ij = Σ_j (V_j F_ij) x_ij,
+        ∇·r_i = −Σ_j V_j x_ij·∇_iW_ij = −Σ_j V_j F_ij |x_ij|²,
+
+    C_i = Σ_j V_j W_ij (Lind et al. 2012, J. Comput. Phys. 231, 1499). ``vol_j``: the
+    neighbours' volumes (superficial m/(ερ) with grains), zero on padding slots. Returns
+    (s, div) with ∇C_i = Σ_j s x_ij and ∇·r_i = Σ_j div."""
+    s = vol_j * pr.f
+    return s, -s * pr.r2
+
+
+def shifting_velocity(a, h, dt, grad_c, div_r, div_min=1.5):
+    """δr_i/Δt with δr_i = −A h_i² ∇C_i (Lind et al. 2012's diffusion form, applied each
+    step), moved with the position update as the XSPH term is: particles drift from
+    crowded to sparse places, which keeps the concentration C uniform in the fluid's
+    interior at rest too (forms scaled by the velocity vanish there). Zero where
+    ∇·r_i < ``div_min`` (2 in the interior of a 2D fluid, about 1 at a free surface,
+    where ∇C points into the fluid and would push the surface particles out; the threshold
+    1.5 of DualSPHysics' 2D free-surface test). ``a`` = A (Physics.shifting), ``h``
+    (rows,), ``grad_c`` (rows, 2)."""
+    k = jnp.where(div_r >= div_min, a * h * h / dt, 0.0)
+    return -k[:, None] * grad_c
+
+
 def smoothing_length_rate(h, rho, drho, n_d=2.0):
     """Dh/Dt = −h/(n_d ρ) Dρ/Dt (K37), n_d = 2 in 2D."""
     return -h / (n_d * rho) * drho
@@ -159,7 +186,7 @@ def density_rate(phys, sp, rho_i, pr: Pairs, eps=None, rho_intrinsic=None, gravi
 
 
 def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, eps=None,
-                  structure_bracket=None, shared=False):
+                  structure_bracket=None, shared=False, h=None, dt=None):
     """dv/dt (pressure with anti-clump, Morris viscosity, gravity; W43, K34–K38; the wall
     backstop :func:`wall_repulsion_scalar` when switched on) and the
     XSPH correction of the fluid rows. ``shared`` (with ``eps``): the pressure force of
@@ -171,7 +198,9 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
     (1 off the fluid) and the pressure bracket is :func:`voidage_bracket`; the anti-clump
     term (W45) uses ερ too, the viscosity (W44) and XSPH keep ρ. ``structure_bracket(coef, p_i, ρ_i, ρ_j, idx)``, when given,
     replaces the bracket of the fluid–structure pairs (the pressure-gradient coupling, K40:
-    ``fsi.pressure_gradient_bracket``). Returns (a, δv_XSPH,
+    ``fsi.pressure_gradient_bracket``). With ``Physics.shifting`` = A > 0 the position
+    term also carries :func:`shifting_velocity` (``h`` all particles' smoothing lengths,
+    ``dt`` the step). Returns (a, δv_XSPH (+ shifting),
     pair accelerations (rows, K, 2) if ``with_pairs`` else None)."""
     rho_i, p_i = pr.own(rho), pr.own(p)
     rp = gather(jnp.stack([rho, p], axis=1), pr.idx)   # second (small) gather: new ρ, P
@@ -223,14 +252,23 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
                                                 is_wall, pr)
     dxx, dxy, vx, vy = pr.dx[..., 0], pr.dx[..., 1], pr.vij[..., 0], pr.vij[..., 1]
     ax_, ay_ = s_dx * dxx + s_v * vx, s_dx * dxy + s_v * vy
+    terms = (ax_, ay_)
     if phys.xsph:
         with jax.named_scope("sph.xsph"):
             s_x = xsph_scalar(sp.eps_xsph, rho_i, rho_j, pr)
-            ax, ay, xx, xy = sum_neighbours(ax_, ay_, s_x * vx, s_x * vy)
-        acc, xs = jnp.stack([ax, ay], axis=1) + gravity, jnp.stack([xx, xy], axis=1)
-    else:
-        acc = jnp.stack(sum_neighbours(ax_, ay_), axis=1) + gravity
-        xs = jnp.zeros_like(acc)
+            terms += (s_x * vx, s_x * vy)
+    if phys.shifting > 0:
+        with jax.named_scope("sph.shifting"):
+            live = pr.w > 0                  # padding slots carry no volume
+            vol_j = jnp.where(live, pr.m_j / jnp.where(live, rhp_j, 1.0), 0.0)
+            s_c, div = shifting_scalars(vol_j, pr)
+            terms += (s_c * dxx, s_c * dxy, div)
+    sums = sum_neighbours(*terms)
+    acc = jnp.stack(sums[:2], axis=1) + gravity
+    xs = jnp.stack(sums[2:4], axis=1) if phys.xsph else jnp.zeros_like(acc)
+    if phys.shifting > 0:
+        xs = xs + shifting_velocity(phys.shifting, pr.own(h), dt,
+                                    jnp.stack(sums[-3:-1], axis=1), sums[-1])
     pair = jnp.stack([ax_, ay_], axis=-1) if with_pairs else None
     if shared:
         return acc, xs, pair, solid_share

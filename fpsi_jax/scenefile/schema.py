@@ -257,6 +257,9 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
       Key("dem_substeps", "int", "", None, "DEM sub-steps per SPH step (default: the fewest "
           "the DEM bound needs)", lo=1),
       Key("xsph", "bool", "", True, "XSPH velocity smoothing"),
+      Key("shifting", "float", "", 0.0, "particle shifting coefficient A: each step "
+          "δr = −A h² ∇C moves particles from crowded to sparse places, off at a free "
+          "surface (0: off)", lo=0.0, hi=0.5),
       Key("variable_h", "bool", "", True, "variable smoothing length"),
       Key("lubrication", "bool", "", True, "lubrication between grains in fluid (W24)"),
       Key("fpi_pressure", "str", "", "archimedes",

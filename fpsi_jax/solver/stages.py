@@ -516,7 +516,7 @@ def fluid_momentum(phys: Physics, params: Params, state: State, fam: SphFamily, 
     out = pair_pass(phys, fam, rho_c_all, lambda pr: sph.momentum_rate(
         phys, kernels.get(phys.kernel), params.sph, jnp.asarray(params.gravity),
         rho_all, p_all, pr, with_pairs=fs is not None, eps=eps_all,
-        structure_bracket=bracket, shared=shared))
+        structure_bracket=bracket, shared=shared, h=fam.h, dt=params.dt))
     acc, xs, pair = out[:3]
     if fs is not None:
         with jax.named_scope("fsi.reaction"):

@@ -520,3 +520,57 @@ def test_position_gradient_finite_for_coincident_particles():
 
     g = np.asarray(jax.jit(jax.grad(loss))(_a(XC)))
     assert np.all(np.isfinite(g))
+
+
+def test_shifting_concentration_gradient_and_divergence_by_hand():
+    """sph.shifting_scalars summed as momentum_rate sums them: ∇C_i against central
+    differences of C(x) = Σ_j V_j W(|x − x_j|, h) moved in x_i alone, and ∇·r ≈ 2 inside a
+    lattice, under DualSPHysics' 1.5 at its free top row."""
+    x, rho, pr, _ = _hydrostatic_column(nx=9, ny=9)
+    h, dx = 0.0025, 0.002
+    vol = np.where(np.asarray(pr.w) > 0, dx * dx, 0.0)      # V_j = m_j/ρ_j = Δx²
+    s, div = sph.shifting_scalars(_a(vol), pr)
+    grad = np.stack([np.sum(np.asarray(s * pr.dx[..., k]), axis=1) for k in (0, 1)], 1)
+    div = np.asarray(jnp.sum(div, axis=1))
+
+    def conc(i, xi):
+        d = np.linalg.norm(np.delete(x, i, 0) - xi, axis=1)
+        return float(np.sum(dx * dx * np.asarray(KERN.w(_a(d), h))))
+
+    e = 1e-7
+    for i in (0, 40, 44, 76):          # a corner, the centre, the right edge, the top row
+        fd = [(conc(i, x[i] + e * u) - conc(i, x[i] - e * u)) / (2 * e)
+              for u in (np.array([1.0, 0.0]), np.array([0.0, 1.0]))]
+        np.testing.assert_allclose(grad[i], fd, rtol=1e-6, atol=1e-3)
+    assert abs(div[40] - 2.0) < 0.1 and np.linalg.norm(grad[40]) < 1.0   # lattice interior
+    top = np.flatnonzero(x[:, 1] > x[:, 1].max() - 1e-9)
+    assert np.all(div[top] < 1.5) and np.all(grad[top][:, 1] < -50.0)     # ∇C into the fluid
+
+
+def test_shifting_velocity_by_hand():
+    """δr/Δt = −A h² ∇C/Δt where ∇·r ≥ 1.5, zero at a free surface."""
+    a, h, dt = 0.01, 0.0025, 1e-4
+    got = np.asarray(sph.shifting_velocity(a, _a([h, h]), dt, _a([[1.0, 2.0], [1.0, 2.0]]),
+                                           _a([2.0, 1.0])))
+    k = a * h * h / dt
+    np.testing.assert_allclose(got, [[-k, -2 * k], [0.0, 0.0]], rtol=1e-13)
+
+
+def test_momentum_rate_adds_the_shifting_to_the_position_term():
+    """With Physics.shifting = A the step's position term gains exactly
+    shifting_velocity(A, h, Δt, ∇C, ∇·r) of the summed shifting_scalars; A = 0 adds nothing."""
+    x, rho, pr, sp = _hydrostatic_column()
+    n, h, dt = len(x), 0.0025, 1e-4
+    args = (KERN, sp, _a([0.0, -9.81]), _a(rho), _a(np.zeros(n)), pr)
+    kw = dict(h=_a(np.full(n, h)), dt=dt)
+    _, xs0, _ = sph.momentum_rate(_phys(n_fluid=n, n_boundary=0, **OFF), *args, **kw)
+    _, xs1, _ = sph.momentum_rate(_phys(n_fluid=n, n_boundary=0, shifting=0.02, **OFF),
+                                  *args, **kw)
+    live = pr.w > 0
+    vol = jnp.where(live, pr.m_j / jnp.where(live, pr.rho_j, 1.0), 0.0)
+    s, div = sph.shifting_scalars(vol, pr)
+    grad = jnp.stack([jnp.sum(s * pr.dx[..., 0], 1), jnp.sum(s * pr.dx[..., 1], 1)], 1)
+    want = sph.shifting_velocity(0.02, _a(np.full(n, h)), dt, grad, jnp.sum(div, 1))
+    np.testing.assert_array_equal(np.asarray(xs0), 0.0)
+    np.testing.assert_allclose(np.asarray(xs1), np.asarray(want), rtol=1e-12, atol=1e-15)
+    assert np.max(np.abs(np.asarray(want))) > 0
