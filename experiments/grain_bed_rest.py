@@ -4,12 +4,14 @@ fluid speed against √(gH), where the particle that has it is, the voidage ε0 
 bed's share from the fluid's own.
 
     .venv/bin/python experiments/grain_bed_rest.py [--packing hex] [--t-end 4] \\
-        [--variant bed|no-grains|frozen-grains]
+        [--variant bed|no-grains|frozen-grains|relaxed-start]
 
     bed            the validation scene as it is
     no-grains      the same tank, fluid, boundary and numerics with the grains taken out
                    (every fluid particle of mass ρ0 Δx², no voidage)
     frozen-grains  the bed with every grain held fixed (kinematic, at rest)
+    relaxed-start  the bed started from the water of a 2 s frozen-grains run (positions and
+                   densities kept, velocities zeroed): whether a relaxed start stays at rest
 
 writes experiments/results/grain_bed_rest_<packing>_<variant>.csv (2–4 min on 2 cores for
 2 s) and prints the windows.
@@ -26,17 +28,26 @@ import numpy as np
 from _table import write_rows
 from fpsi_jax import cases
 from fpsi_jax.build import hydrostatic_fluid, lattice
+from fpsi_jax.cases.grain_bed import bed_metrics, bed_observer
 from fpsi_jax.run.driver import simulate
 
 WINDOW = 0.1
-VARIANTS = ("bed", "no-grains", "frozen-grains")
+VARIANTS = ("bed", "no-grains", "frozen-grains", "relaxed-start")
+T_RELAX = 2.0
 
 
 def variant_scene(packing: str, t_end: float, variant: str):
     scene = cases.build("grain_bed", packing=packing, t_end=t_end)
-    if variant == "frozen-grains":
+    if variant in ("frozen-grains", "relaxed-start"):
         solid = dataclasses.replace(scene.solid, fixed=np.ones(scene.solid.n, bool))
-        return dataclasses.replace(scene, solid=solid)
+        frozen = dataclasses.replace(scene, solid=solid)
+        if variant == "frozen-grains":
+            return frozen
+        f = simulate(frozen, t_end=T_RELAX, progress=False).state.fluid
+        x = np.asarray(f.x, float)
+        fluid = dataclasses.replace(scene.fluid, x=x, v=np.zeros_like(x),
+                                    rho=np.asarray(f.rho, float))
+        return dataclasses.replace(scene, fluid=fluid)
     if variant == "no-grains":
         kw, sp = scene.builder_kwargs, scene.params.sph
         h = float(np.ravel(scene.fluid.h)[0])
@@ -67,8 +78,10 @@ def main():
     a = ap.parse_args()
     scene = variant_scene(a.packing, a.t_end, a.variant)
     kw = scene.builder_kwargs
-    res = simulate(scene, progress=False, observe=fastest)
-    obs = np.asarray(res.observations, float)
+    grains = scene.solid is not None
+    res = simulate(scene, progress=False,
+                   observe=(lambda s: (fastest(s), bed_observer(s))) if grains else fastest)
+    obs = np.asarray(res.observations[0] if grains else res.observations, float)
     eps0 = np.asarray(scene.fluid.mass) / (float(scene.params.sph.rho0) * kw["dx"] ** 2)
     scale = np.sqrt(9.81 * kw["water_height"])
     rows = []
@@ -85,6 +98,11 @@ def main():
     for r in rows:
         print(f"{r['t0']:.1f}-{r['t1']:.1f}  {r['fluid_max_v'] * 100:6.2f} %   "
               f"({r['x_mm']:5.1f}, {r['y_mm']:5.1f})  {r['eps0']:.3f}  {r['eps']:.3f}")
+    if grains:
+        p, vf, vs, load = bed_metrics(scene, dataclasses.replace(
+            res, observations=res.observations[1]))
+        print(f"validation figures: pore pressure {p:.2%}, fluid {vf:.2%}, grains {vs:.2%} "
+              f"of sqrt(gH) in the last quarter, floor load {load:+.2%}")
     print("->", out)
 
 
