@@ -1,7 +1,7 @@
 """Where the fluid over `grain_bed_at_rest`'s bed moves, 0.1 s window by window: the largest
 fluid speed against √(gH), where the particle that has it is, the voidage ε0 it started at
-(its mass is ε0 ρ0 Δx²) and the voidage ε it sees now; with two controls that tell the
-bed's share from the fluid's own.
+(its mass is ε0 ρ0 Δx²) and the voidage ε it sees now; with controls that tell the bed's
+share from the fluid's own.
 
     .venv/bin/python experiments/grain_bed_rest.py [--packing hex] [--t-end 4] \\
         [--variant bed|no-grains|frozen-grains|relaxed-start]
@@ -83,7 +83,7 @@ def main():
                    observe=(lambda s: (fastest(s), bed_observer(s))) if grains else fastest)
     obs = np.asarray(res.observations[0] if grains else res.observations, float)
     eps0 = np.asarray(scene.fluid.mass) / (float(scene.params.sph.rho0) * kw["dx"] ** 2)
-    scale = np.sqrt(9.81 * kw["water_height"])
+    scale = np.sqrt(-float(np.asarray(scene.params.gravity)[1]) * kw["water_height"])
     rows = []
     for k, w in enumerate(np.array_split(obs, int(round(a.t_end / WINDOW)))):
         v, i, x, y, eps = w[np.argmax(w[:, 0])]
