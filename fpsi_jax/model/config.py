@@ -47,6 +47,13 @@ class NeighborConfig:
                   (the wall's extrapolated pressure, the structure's pressure and
                   reaction), so they list no wall particle: a boundary row inside a
                   lattice finer than the fluid's set the list's width K for every row
+    wall_width    the sums over the ``fluid_only_rows`` read only their first
+                  ``wall_width`` slots (0: all K). A rebuild fills a row's slots from the
+                  first, so the rest of a wall row is padding: a wall particle sees fluid
+                  on one side only (elastic gate: at most 13 of K = 50). Set by
+                  ``run.driver.setup`` from the scene's first positions × the capacity
+                  multiplier; a rebuild that finds a wall row with more neighbours flags an
+                  overflow like a full row, and ``neighbors.grow`` widens it
     """
 
     r_cut: float
@@ -60,6 +67,7 @@ class NeighborConfig:
     row_block: int = 0
     n_columns: int = 0
     fluid_only_rows: tuple = ()
+    wall_width: int = 0
 
     @property
     def list_radius(self) -> float:

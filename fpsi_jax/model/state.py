@@ -151,10 +151,11 @@ class Status:
     redo_step               first step not computed exactly: an overflow's step, or the step
                             after h outgrew the cut-off (−1: none)
     rebuilds                number of neighbour-list rebuilds so far
-    sph_need, dem_need      (2,) int32: the most neighbours of a particle and the most
-                            particles in a cell that any rebuild of the SPH / DEM list has
-                            found, before the cut to capacity: an overflowed list is regrown
-                            to fit them (``neighbors.grow``)
+    sph_need, dem_need      (3,) int32: the most neighbours of a particle, the most
+                            particles in a cell and the most neighbours of a wall row
+                            (NeighborConfig.fluid_only_rows) that any rebuild of the SPH /
+                            DEM list has found, before the cut to capacity: an overflowed
+                            list is regrown to fit them (``neighbors.grow``)
     """
 
     bad: Any
@@ -173,8 +174,8 @@ class Status:
         z = jnp.zeros((), jnp.int32)
         f = jnp.zeros((), bool)
         return Status(bad=f, step=z - 1, particle=z - 1, code=z, overflow=f, h_exceeded=f,
-                      rebuilds=z, redo_step=z - 1, sph_need=jnp.zeros((2,), jnp.int32),
-                      dem_need=jnp.zeros((2,), jnp.int32))
+                      rebuilds=z, redo_step=z - 1, sph_need=jnp.zeros((3,), jnp.int32),
+                      dem_need=jnp.zeros((3,), jnp.int32))
 
     def must_redo(self) -> bool:
         """Host side: the chunk must be redone with larger lists, i.e. a list overflowed

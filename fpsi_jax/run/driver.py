@@ -120,7 +120,7 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
     params = params.replace(dt=float(dt)).validate()
     if phys.x64:
         jax.config.update("jax_enable_x64", True)
-    return phys, params
+    return init.fit_wall_width(scene, phys), params
 
 
 #: the step counter is int32 inside the compiled step
@@ -155,6 +155,20 @@ def grow(phys: Physics, failed: State) -> Physics:
         phys = dataclasses.replace(phys, dem_neighbors=neighbors.grow(
             phys.dem_neighbors, failed.solid_nbrs, np.asarray(failed.status.dem_need)))
     return phys
+
+
+def first_state(scene: Scene, phys: Physics, params: Params, max_regrowths: int = 12):
+    """(Physics, the initial State) with lists that hold the first positions: a list whose
+    allocation overflowed (only the wall rows' width can, NeighborConfig.wall_width, when
+    ``phys`` was not measured on these positions by :func:`setup`) is grown and the state
+    made afresh, since its first rates were computed from the cut rows."""
+    for _ in range(max_regrowths + 1):
+        state = init.init_state(scene, phys, params)
+        if state.nbrs is None or not neighbors.overflowed(state.nbrs):
+            return phys, state
+        phys = grow(phys, state)
+    raise RuntimeError(f"the first neighbour lists still overflowed after {max_regrowths} "
+                       "regrowths")
 
 
 def reallocate(phys: Physics, state: State) -> State:
@@ -268,7 +282,7 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
         state = io.restore(init.init_state(scene, phys, p), ck)
         io.truncate_probes(output, float(state.t))
     elif state is None:
-        state = init.init_state(scene, phys, p)
+        phys, state = first_state(scene, phys, p)
     done = int(state.step)
     writer = None
     if output:
@@ -352,7 +366,8 @@ def grown_like(phys: Physics, saved: dict) -> Physics:
             cfg = dataclasses.replace(cfg, r_cut=float(old["r_cut"]),
                                       extra_capacity=int(old["extra_capacity"]),
                                       min_neighbors=int(old.get("min_neighbors", 0)),
-                                      min_cell_capacity=int(old.get("min_cell_capacity", 0)))
+                                      min_cell_capacity=int(old.get("min_cell_capacity", 0)),
+                                      wall_width=int(old.get("wall_width", cfg.wall_width)))
             phys = dataclasses.replace(phys, **{key: cfg})
     return dataclasses.replace(phys, h_margin=float(saved.get("h_margin", phys.h_margin)))
 

@@ -502,6 +502,8 @@ def restore(state, ck: Checkpoint):
                                  "from the run that wrote it")
         saved = np.asarray(ck.leaves[name])
         want = np.asarray(v)
+        if name in _RUN_TALLIES and saved.shape != want.shape:
+            saved = np.resize(np.append(saved, np.zeros_like(want)), want.shape)  # fewer tallies
         if saved.dtype != want.dtype:
             raise ParameterError(f"checkpoint {name} is {saved.dtype}, the run {want.dtype}: "
                                  "the scene or options differ from the run that wrote it")

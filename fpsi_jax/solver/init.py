@@ -2,6 +2,7 @@
 rates evaluated."""
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import jax
@@ -16,6 +17,30 @@ from ..model.state import (BondState, BoundaryState, FluidState, FpiState, FsiSt
 from ..physics import bonds as bonds_law
 from ..physics import fpi, kernels
 from . import neighbors, stages
+
+
+def family_positions(scene: Scene, phys: Physics) -> np.ndarray:
+    """The first positions of the SPH family in list order (stages.sph_positions): fluid,
+    boundary, structure discs (with a fluid–structure coupling), grains (with FPI)."""
+    parts = [scene.fluid.x]
+    if scene.boundary is not None:
+        parts.append(scene.boundary.x)
+    if phys.has_fsi:
+        parts.append(scene.solid.x[scene.solid.structure_indices()])
+    if phys.has_fpi:
+        parts.append(scene.solid.x[scene.solid.grain_indices()])
+    return np.concatenate(parts, axis=0)
+
+
+def fit_wall_width(scene: Scene, phys: Physics) -> Physics:
+    """``phys`` with the width the sums read of the SPH list's wall rows
+    (NeighborConfig.wall_width) measured on the scene's first positions."""
+    cfg = phys.neighbors
+    if cfg is None or not cfg.fluid_only_rows:
+        return phys
+    x = jnp.asarray(family_positions(scene, phys), stages.dtype(phys))
+    width = neighbors.wall_width(cfg, x)
+    return dataclasses.replace(phys, neighbors=dataclasses.replace(cfg, wall_width=width))
 
 
 def init_state(scene: Scene, phys: Physics, params: Params) -> State:

@@ -49,8 +49,19 @@ partition = _Deferred("jax_md.partition")
 space = _Deferred("jax_md.space")
 
 
-@functools.lru_cache(maxsize=64)
+def _key(cfg: NeighborConfig) -> NeighborConfig:
+    """``cfg`` without :attr:`NeighborConfig.wall_width`, which only the step's sums and the
+    overflow check read: the cell list, jax-md's functions and the allocation's programs
+    are the same for every width (setup measures the width with them)."""
+    return dataclasses.replace(cfg, wall_width=0) if cfg.wall_width else cfg
+
+
 def _family(cfg: NeighborConfig):
+    return _family_of(_key(cfg))
+
+
+@functools.lru_cache(maxsize=64)
+def _family_of(cfg: NeighborConfig):
     """(jax-md's allocate/update pair for ``cfg``, the cell list its lists use or None when
     the domain is too small for one, the box array both were given); cached, so the same
     cfg gives the same functions. The cell list is made from the same float32 box, cut-off
@@ -92,24 +103,61 @@ def allocate(cfg: NeighborConfig, x) -> partition.NeighborList:
     carries it as static pytree data, so every fresh list looked new to ``jax.jit`` and each
     ``simulate`` call traced and compiled its programs again; every list of ``cfg`` now
     carries the one cached cell list. A domain under 3 cut-offs keeps jax-md's allocate."""
+    return _allocate(cfg, x)[0]
+
+
+def _allocate(cfg: NeighborConfig, x):
+    """:func:`allocate` and the most neighbours of a ``fluid_only_rows`` row (0: none)."""
     fns, cells, _ = _family(cfg)
     xs = shift(cfg, x)
     if cells is None:
-        return fns.allocate(xs, extra_capacity=cfg.extra_capacity)
+        nbrs = fns.allocate(xs, extra_capacity=cfg.extra_capacity)
+        return nbrs, _wall_count(cfg, nbrs.idx, xs.shape[0])
     n = xs.shape[0]
     # jax-md's cell capacity: the fullest cell × multiplier, + extra
-    cell_cap = max(int(int(_fullest_cell(cfg, xs)) * cfg.capacity_multiplier)
+    cell_cap = max(int(int(_fullest_cell(_key(cfg), xs)) * cfg.capacity_multiplier)
                    + cfg.extra_capacity, cfg.min_cell_capacity)
-    idx, occupancy, cell_over = _allocation_rows(cfg, cells, xs, cell_cap)
-    occupancy = int(occupancy)
+    idx, occupancy, wall, cell_over = _allocation_rows(_key(cfg), cells, xs, cell_cap)
+    occupancy, wall = int(occupancy), int(wall)
     k = min(max(int(occupancy * cfg.capacity_multiplier + cfg.extra_capacity),
                 cfg.min_neighbors), idx.shape[1], n - 1)
     err = partition.PartitionError(jnp.zeros((), jnp.uint8))
     err = err.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW, cell_over)
     err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
-                     jnp.asarray(occupancy > k))
+                     jnp.asarray(occupancy > k or _wall_over(cfg, wall)))
     return partition.NeighborList(idx[:, :k], xs, err, cell_cap, k, partition.Dense,
-                                  cfg.list_radius, cells, fns.update)
+                                  cfg.list_radius, cells, fns.update), wall
+
+
+def _wall_count(cfg: NeighborConfig, idx, n: int) -> int:
+    """The most listed neighbours of a ``fluid_only_rows`` row of ``idx`` (host side)."""
+    if not cfg.fluid_only_rows:
+        return 0
+    first, stop, _ = cfg.fluid_only_rows
+    return int(np.max(np.sum(np.asarray(idx[first:stop]) < n, axis=1), initial=0))
+
+
+def _wall_over(cfg: NeighborConfig, wall):
+    """Whether a wall row has more neighbours than the sums read (:attr:`wall_width`)."""
+    return (wall > cfg.wall_width) if cfg.wall_width else False
+
+
+def wall_width(cfg: NeighborConfig, x) -> int:
+    """The width the sums over ``cfg.fluid_only_rows`` should read for positions ``x``
+    (scene frame): the most neighbours of such a row × the capacity multiplier, at least
+    one (0 for a config without such rows). Host side; compiles the same programs as
+    :func:`allocate` (run.driver.setup calls it on the scene's first positions)."""
+    if not cfg.fluid_only_rows or _family(cfg)[1] is None:
+        return 0        # jax-md's O(N²) list puts wall neighbours in those rows too
+    wall = _allocate(_key(cfg), x)[1]
+    return max(int(np.ceil(wall * cfg.capacity_multiplier)) + cfg.extra_capacity, 1)
+
+
+def wall_rows(cfg: NeighborConfig, idx, first: int, n: int):
+    """Rows ``first`` … ``first`` + n − 1 of the list ``idx``, all of which lie in
+    ``cfg.fluid_only_rows``, at the width the sums read (:attr:`NeighborConfig.wall_width`;
+    the slots past it are padding while the list has not overflowed)."""
+    return idx[first:first + n, :cfg.wall_width or None]
 
 
 @functools.partial(jax.jit, static_argnums=0)
@@ -126,15 +174,15 @@ def _fullest_cell(cfg: NeighborConfig, xs):
 @functools.partial(jax.jit, static_argnums=(0, 1, 3))
 def _allocation_rows(cfg, cells, xs, cell_capacity):
     """Every neighbour of every particle (the full 3^d·C candidate width), their largest
-    count and the cell-list overflow flag. ``cells``: jax-md's cell list of ``cfg``, whose
+    count, that of a ``fluid_only_rows`` row and the cell-list overflow flag. ``cells``: jax-md's cell list of ``cfg``, whose
     own update is used when every particle is listed (ours equals it, tested)."""
     cl = (cell_list(cfg, xs, cell_capacity) if 0 < cfg.n_columns < xs.shape[0]
           else cells.update(xs, cell_capacity))
     dim = xs.shape[1]
     width = cl.id_buffer.shape[dim] * 3 ** dim          # id_buffer: (cells…, C, 1)
-    idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, width, n_columns=cfg.n_columns,
-                                 fluid_only=cfg.fluid_only_rows)
-    return idx, occupancy, cl.did_buffer_overflow
+    idx, occupancy, wall = _dense_rows(cl, xs, cfg.list_radius, width,
+                                       n_columns=cfg.n_columns, fluid_only=cfg.fluid_only_rows)
+    return idx, occupancy, wall, cl.did_buffer_overflow
 
 
 def moved_past_half_skin(skin, d, about_centre=True):
@@ -166,12 +214,13 @@ def update(cfg: NeighborConfig, nbrs: partition.NeighborList, x, about_centre=Tr
     since the last build no longer fit in a circle of radius skin/2
     (:func:`moved_past_half_skin`; jax-md: once one has moved more than skin/2, which
     ``about_centre=False`` keeps).
-    ``need`` (int32, shape (2,)) is what the rebuild found,
-    before anything was cut to capacity: the most neighbours of a particle and the most
-    particles in a cell (zeros when nothing was rebuilt, or without a cell list); an
-    overflowed list is regrown to fit it (:func:`grow`)."""
+    ``need`` (int32, shape (3,)) is what the rebuild found,
+    before anything was cut to capacity: the most neighbours of a particle, the most
+    particles in a cell and the most neighbours of a ``fluid_only_rows`` row (zeros when
+    nothing was rebuilt, or without a cell list); an overflowed list is regrown to fit it
+    (:func:`grow`)."""
     xs = shift(cfg, x)
-    zero = jnp.zeros((2,), jnp.int32)
+    zero = jnp.zeros((3,), jnp.int32)
     if nbrs.cell_list_fn is None:        # domain < 3 cut-offs: jax-md's O(N²) search
         new = nbrs.update(xs)
         return new, jnp.any(new.reference_position != nbrs.reference_position), zero
@@ -197,15 +246,16 @@ def rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
 
 def _rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
     """:func:`rebuild` and what it needed: (the most neighbours of a particle, the most
-    particles in a cell), int32."""
+    particles in a cell, the most neighbours of a ``fluid_only_rows`` row), int32."""
     cl, fullest = _cell_list(cfg, xs, nbrs.cell_list_capacity)
-    idx, occupancy = _dense_rows(cl, xs, cfg.list_radius, nbrs.idx.shape[1], cfg.row_block,
-                                 cfg.n_columns, cfg.fluid_only_rows)
+    idx, occupancy, wall = _dense_rows(cl, xs, cfg.list_radius, nbrs.idx.shape[1],
+                                       cfg.row_block, cfg.n_columns, cfg.fluid_only_rows)
     err = nbrs.error.update(partition.PartitionErrorCode.CELL_LIST_OVERFLOW,
                             cl.did_buffer_overflow)
     err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
-                     occupancy > nbrs.idx.shape[1])
-    need = jnp.stack([occupancy.astype(jnp.int32), fullest.astype(jnp.int32)])
+                     (occupancy > nbrs.idx.shape[1]) | _wall_over(cfg, wall))
+    need = jnp.stack([occupancy.astype(jnp.int32), fullest.astype(jnp.int32),
+                      wall.astype(jnp.int32)])
     return nbrs.set(idx=idx, reference_position=xs, error=err), need
 
 
@@ -279,7 +329,8 @@ def _packs_ids(n: int, dtype) -> bool:
 
 def _dense_rows(cl, xs, cut, k, block_rows=0, n_columns=0, fluid_only=()):
     """The first ``k`` neighbours (in jax-md's candidate order) of every particle from the
-    cell list ``cl``, padding = N, and the largest number of neighbours of a particle;
+    cell list ``cl``, padding = N, the largest number of neighbours of a particle and that
+    of a ``fluid_only`` row (0: none);
     computed in row blocks of ``block_rows`` rows (0: all at once), so that the (rows, 9C)
     candidate arrays of a block stay in cache (pairs.over_row_blocks). Only candidates
     below ``n_columns`` are listed (0: all; NeighborConfig.n_columns), and rows in
@@ -310,6 +361,7 @@ def _dense_rows(cl, xs, cut, k, block_rows=0, n_columns=0, fluid_only=()):
         r2 = jnp.sum((x[:, None, :] - cpos) ** 2, axis=-1)
         me = row0 + jnp.arange(rows, dtype=jnp.int32)
         valid = (r2 < cut * cut) & (cand < n_cols) & (cand != me[:, None])
+        wall_row = jnp.zeros((rows,), bool)
         if fluid_only:
             first, stop, n_f = fluid_only
             wall_row = (me >= first) & (me < stop)
@@ -320,10 +372,10 @@ def _dense_rows(cl, xs, cut, k, block_rows=0, n_columns=0, fluid_only=()):
         # pairs first writes an (N·9C, 2) index array (gate list: 2.7 against 2.1 ms)
         at = (jnp.arange(rows, dtype=jnp.int32)[:, None] * (k + 1) + slot).reshape(-1)
         idx = jnp.full((rows * (k + 1),), n, jnp.int32).at[at].set(cand.reshape(-1))
-        return idx.reshape(rows, k + 1)[:, :k], count[:, -1]
+        return idx.reshape(rows, k + 1)[:, :k], count[:, -1], jnp.where(wall_row, count[:, -1], 0)
 
-    idx, counts = over_row_blocks(block, n, block_rows)
-    return idx, jnp.max(counts)
+    idx, counts, walls = over_row_blocks(block, n, block_rows)
+    return idx, jnp.max(counts), jnp.max(walls)
 
 
 def _running_count(valid, n_cells, cap):
@@ -355,27 +407,42 @@ def capacity(nbrs: partition.NeighborList) -> int:
     return int(nbrs.idx.shape[1])
 
 
-def grow(cfg: NeighborConfig, nbrs: partition.NeighborList, need=(0, 0)) -> NeighborConfig:
+def grow(cfg: NeighborConfig, nbrs: partition.NeighborList, need=(0, 0, 0)) -> NeighborConfig:
     """A config with room for what overflowed ``nbrs``.
 
-    ``need`` is (the most neighbours of a particle, the most particles in a cell) that the
-    run's rebuilds have found so far (:func:`update`, ``Status.sph_need``; zeros: unknown).
-    What overflowed, the rows or the cells, gets room for its need times the capacity
-    multiplier (and at least one slot more than it had), as a fresh allocation gives, and
-    nothing else grows: a cell's capacity sets the width of the rebuild's candidate pass
-    (9 cells × the capacity), the rows' that of every pair pass. Without a need, or for a
+    ``need`` is (the most neighbours of a particle, the most particles in a cell, the most
+    neighbours of a ``fluid_only_rows`` row) that the run's rebuilds have found so far
+    (:func:`update`, ``Status.sph_need``; zeros: unknown). What overflowed, the rows, the
+    cells or the width the sums read of the wall rows (:attr:`NeighborConfig.wall_width`),
+    gets room for its need times the capacity multiplier (and at least one slot more than
+    it had), as a fresh allocation gives, and nothing else grows: a cell's capacity sets
+    the width of the rebuild's candidate pass (9 cells × the capacity), the rows' that of
+    every pair pass. Without a need, or for a
     list without a cell list (jax-md's O(N²) search, whose allocation knows only
     ``extra_capacity``), every cell and row gets ~50 % more room."""
-    rows_need, cells_need = (int(v) for v in need)
+    need = tuple(int(v) for v in need) + (0,) * (3 - len(need))
+    rows_need, cells_need, wall_need = need[:3]
+    # an allocation that found a wide wall row flags it without a rebuild's need: its rows
+    # hold every neighbour up to K, so count them
+    wall_need = max(wall_need, _wall_count(cfg, nbrs.idx, nbrs.idx.shape[0]))
     code = int(nbrs.error.code)
+    mult = cfg.capacity_multiplier
+    wall_over = bool(cfg.wall_width) and wall_need > cfg.wall_width
+    rows_over = bool(code & int(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW)) and (
+        rows_need > capacity(nbrs) or not wall_over)
+    cells_over = bool(code & int(partition.PartitionErrorCode.CELL_LIST_OVERFLOW))
+    if wall_over:
+        cfg = dataclasses.replace(cfg, wall_width=max(cfg.wall_width + 1,
+                                                      int(np.ceil(wall_need * mult))))
+        if not (rows_over or cells_over):
+            return cfg                # only the wall rows' width ran out
     if rows_need <= 0 or cells_need <= 0 or nbrs.cell_list_fn is None:
         extra = cfg.extra_capacity + max(8, capacity(nbrs) // 2)
         return dataclasses.replace(cfg, extra_capacity=int(extra))
-    mult = cfg.capacity_multiplier
-    if code & int(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW):
+    if rows_over:
         rows = max(capacity(nbrs) + 1, int(np.ceil(rows_need * mult)), cfg.min_neighbors)
         cfg = dataclasses.replace(cfg, min_neighbors=rows)
-    if code & int(partition.PartitionErrorCode.CELL_LIST_OVERFLOW):
+    if cells_over:
         cells = max(int(nbrs.cell_list_capacity) + 1, int(np.ceil(cells_need * mult)),
                     cfg.min_cell_capacity)
         cfg = dataclasses.replace(cfg, min_cell_capacity=cells)

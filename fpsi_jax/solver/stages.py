@@ -476,13 +476,14 @@ def wall_pressure(phys: Physics, params: Params, state: State, fam: SphFamily,
         with jax.named_scope("boundary.extrapolated"):
             pb = boundary.extrapolated_pressure(
                 nf, kern, g, fam.x, fam.h, _cat(lvl.rho, b.rho, _opt(fs, "rho")),
-                _cat(lvl.p, b.p, _opt(fs, "p")), fam.idx[nf:nf + nb])
+                _cat(lvl.p, b.p, _opt(fs, "p")),
+                neighbors.wall_rows(phys.neighbors, fam.idx, nf, nb))
         b = b.replace(p=pb, rho=eos.density(pb, sp.rho0, sp.c0, sp.gamma))
     if fs is not None and phys.fsi in (FsiMethod.EXTRAPOLATED,
                                        FsiMethod.PRESSURE_APPROXIMATION):
         rho_all = _cat(lvl.rho, _opt(b, "rho"), fs.rho)
         p_all = _cat(lvl.p, _opt(b, "p"), fs.p)
-        idx_s = fam.idx[fam.first_s:fam.first_s + fs.idx.shape[0]]
+        idx_s = neighbors.wall_rows(phys.neighbors, fam.idx, fam.first_s, fs.idx.shape[0])
         if phys.fsi is FsiMethod.EXTRAPOLATED:
             with jax.named_scope("fsi.extrapolated"):
                 ps = boundary.extrapolated_pressure(nf, kern, g, fam.x, fam.h, rho_all, p_all,
@@ -520,7 +521,8 @@ def fluid_momentum(phys: Physics, params: Params, state: State, fam: SphFamily, 
     acc, xs, pair = out[:3]
     if fs is not None:
         with jax.named_scope("fsi.reaction"):
-            idx_s = state.nbrs.idx[first:first + phys.n_structure]
+            idx_s = neighbors.wall_rows(phys.neighbors, state.nbrs.idx, first,
+                                        phys.n_structure)
             fs = fs.replace(force=fsi.reaction(pair, state.fluid.mass,
                                                fam.idx[:phys.n_fluid], idx_s, first))
     state = state.replace(fluid=state.fluid.replace(acc=acc, xsph=xs), fsi=fs)

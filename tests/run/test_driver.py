@@ -1,6 +1,7 @@
 """The host driver (fpsi_jax.run.driver): unstable runs stop with a diagnosis and leave a
 valid, finite file; frames and speed; dt overrides; an overflowing neighbour list is regrown
 and its chunk redone; the last short chunk and a second run reuse the compiled program."""
+import dataclasses
 import json
 
 import h5py
@@ -102,6 +103,28 @@ def test_overflow_is_redone_and_equals_a_large_allocation(tmp_path):
                                np.asarray(roomy.state.fluid.x), rtol=0, atol=1e-6)
     np.testing.assert_allclose(np.asarray(tight.state.fluid.rho),
                                np.asarray(roomy.state.fluid.rho), rtol=1e-5)
+
+
+def test_wall_rows_too_narrow_are_widened_and_redone(monkeypatch):
+    """A boundary-row width of one slot (NeighborConfig.wall_width) overflows at the first
+    allocation: the driver widens only it to what the rows hold before the first rates are
+    computed, and the run equals one at the width setup measures."""
+    def sc():
+        return cases.build("hydrostatic_tank", dx=0.01, depth=0.1, width=0.1, t_end=0.01)
+    wide = simulate(sc(), progress=False, chunk_steps=20)
+    narrow = lambda scene, phys: dataclasses.replace(phys, neighbors=dataclasses.replace(
+        phys.neighbors, wall_width=1))
+    monkeypatch.setattr(init, "fit_wall_width", narrow)
+    tight = simulate(sc(), progress=False, chunk_steps=20)
+    assert wide.reallocations == tight.reallocations == 0
+    assert tight.physics.neighbors.wall_width > 1
+    assert tight.physics.neighbors.min_neighbors == wide.physics.neighbors.min_neighbors
+    assert neighbors.capacity(tight.state.nbrs) == neighbors.capacity(wide.state.nbrs)
+    assert tight.n_steps == wide.n_steps
+    np.testing.assert_allclose(np.asarray(tight.state.fluid.x), np.asarray(wide.state.fluid.x),
+                               rtol=0, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(tight.state.boundary.p),
+                               np.asarray(wide.state.boundary.p), rtol=1e-4, atol=1e-2)
 
 
 def test_particle_leaving_the_domain_is_a_clear_error(tmp_path):

@@ -405,3 +405,51 @@ def test_column_limit_leaves_out_only_the_columns_past_it():
     np.testing.assert_array_equal(np.asarray(cl.particle_cell_id),
                                   np.asarray(whole.particle_cell_id))
     assert small.cell_list_capacity <= nbrs.cell_list_capacity
+
+
+def test_wall_rows_are_read_at_the_width_setup_measured():
+    """setup measures the wall rows' width on the scene's first positions (the most fluid
+    neighbours of a boundary row × the capacity multiplier); every listed neighbour of a
+    boundary row lies in its first ``wall_width`` slots, so wall_rows drops padding only."""
+    from fpsi_jax.run.driver import setup
+    cfg, xs, nbrs = _dam_break_list(every_column=False)
+    phys, _ = setup(cases.build("dam_break", dx=0.01))
+    first, stop, _ = cfg.fluid_only_rows
+    idx = np.asarray(nbrs.idx)
+    n = xs.shape[0]
+    most = int(np.max(np.sum(idx[first:stop] < n, axis=1)))
+    assert phys.neighbors.wall_width == int(np.ceil(most * cfg.capacity_multiplier))
+    assert phys.neighbors.wall_width < neighbors.capacity(nbrs)     # guard: it narrows
+    rows = np.asarray(neighbors.wall_rows(phys.neighbors, nbrs.idx, first, stop - first))
+    assert rows.shape == (stop - first, phys.neighbors.wall_width)
+    assert np.sum(rows < n) == np.sum(idx[first:stop] < n)
+    assert not neighbors.overflowed(neighbors.allocate(phys.neighbors,
+                                                       xs + np.asarray(cfg.origin, np.float32)))
+
+
+def test_a_wall_row_past_its_width_overflows_and_grow_widens_only_it():
+    """A width one short of the widest boundary row: the allocation and a rebuild flag a
+    neighbour overflow, the rebuild's need[2] is that row's count, and grow widens the
+    wall rows to need × multiplier while K and the cells stay as they were."""
+    import dataclasses
+    import jax.numpy as jnp
+    from jax_md import partition
+    cfg, xs, nbrs = _dam_break_list(every_column=False)
+    first, stop, _ = cfg.fluid_only_rows
+    n = xs.shape[0]
+    most = int(np.max(np.sum(np.asarray(nbrs.idx)[first:stop] < n, axis=1)))
+    tight = dataclasses.replace(cfg, wall_width=most - 1)
+    x = xs + jnp.asarray(cfg.origin, xs.dtype)
+    alloc = neighbors.allocate(tight, x)
+    assert neighbors.overflowed(alloc)
+    assert neighbors.capacity(alloc) == neighbors.capacity(nbrs)
+    over, need = neighbors._rebuild(tight, alloc.set(error=nbrs.error), xs)
+    assert int(over.error.code) == int(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW)
+    assert int(need[2]) == most and int(need[0]) <= neighbors.capacity(nbrs)
+    for grown in (neighbors.grow(tight, over, need), neighbors.grow(tight, alloc)):
+        assert grown.wall_width == int(np.ceil(most * cfg.capacity_multiplier))
+        assert (grown.min_neighbors, grown.min_cell_capacity, grown.extra_capacity) == (
+            cfg.min_neighbors, cfg.min_cell_capacity, cfg.extra_capacity)
+        fits = neighbors.allocate(grown, x)
+        assert not neighbors.overflowed(fits)
+        assert not neighbors.overflowed(neighbors.rebuild(grown, fits, xs))
