@@ -12,7 +12,10 @@ state, the median of ``--reps`` compiled chunks of ``--steps`` of
 * the DEM part alone (``stages.discs``: all sub-steps of a step),
 * a forced rebuild of the SPH list (positions nudged every time so nothing is hoisted),
 
-and the rebuild interval seen in the whole-step chunk. ``--profile`` adds the time per
+and the rebuild interval seen in the whole-step chunk. ``--wall-rows`` adds, in the same
+process and interleaved chunk by chunk, the whole step with the wall rows read at the
+width setup measured (NeighborConfig.wall_width) against the same step reading all K
+slots (wall_width 0), each the median of ``--reps`` chunks. ``--profile`` adds the time per
 named scope (``jax.named_scope`` in the stages and physics modules) from a JAX profiler
 trace of one chunk: the trace's per-op times are summed by the op's scope (ops outside any
 scope are listed by their primitive). Profiling slows small ops; read the shares, not the
@@ -22,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import dataclasses
 import glob
 import gzip
 import json
@@ -79,7 +83,21 @@ def scope_profile(fn, state, steps):
     return {k: v / steps for k, v in total.most_common()}
 
 
-def bench(name, warm, steps, reps, profile):
+def interleaved_ms(fns, state, steps, reps):
+    """{name: median ms per step} of compiled chunks ``fns`` timed one after another,
+    ``reps`` rounds (a slow spell of the machine hits every variant alike)."""
+    for fn in fns.values():
+        jax.block_until_ready(fn(state))
+    walls = {k: [] for k in fns}
+    for _ in range(reps):
+        for k, fn in fns.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(fn(state))
+            walls[k].append(time.perf_counter() - t0)
+    return {k: statistics.median(v) / steps * 1e3 for k, v in walls.items()}
+
+
+def bench(name, warm, steps, reps, profile, wall_rows=False):
     scene = cases.build(name, t_end=warm)
     state = simulate(scene, progress=False).state
     phys, params = setup(scene)
@@ -109,6 +127,13 @@ def bench(name, warm, steps, reps, profile):
                             / row["step_ms"])
     if profile:
         row["profile_us_per_step"] = scope_profile(whole, state, steps)
+    if wall_rows:
+        full = dataclasses.replace(phys, neighbors=dataclasses.replace(cfg, wall_width=0))
+        ab = interleaved_ms({"narrow": whole,
+                             "full": _loop(lambda i, s: solver.step(full, s, p), steps)},
+                            state, steps, reps)
+        row.update(wall_width=cfg.wall_width, step_ms_wall_rows_narrow=ab["narrow"],
+                   step_ms_wall_rows_full=ab["full"])
     return row
 
 
@@ -119,17 +144,23 @@ def main():
     ap.add_argument("--steps", type=int, default=100)
     ap.add_argument("--reps", type=int, default=5)
     ap.add_argument("--profile", action="store_true")
+    ap.add_argument("--wall-rows", action="store_true",
+                    help="A/B: wall rows at their measured width against all K slots")
     ap.add_argument("--out", default=os.path.join(HERE, "results", "bench_coupled.json"))
     args = ap.parse_args()
     rows = []
     for name in args.cases:
-        r = bench(name, args.warm, args.steps, args.reps, args.profile)
+        r = bench(name, args.warm, args.steps, args.reps, args.profile, args.wall_rows)
         rows.append(r)
         print(f"{name}: step {r['step_ms']:.2f} ms; DEM {r['discs_ms']:.2f} ms "
               f"({r['dem_substeps']} sub-steps of {r['substep_us']:.0f} us, "
               f"{r['n_discs']} discs); SPH rebuild {r['rebuild_ms']:.2f} ms every "
               f"{args.steps / max(r['rebuilds_in_chunk'], 1):.1f} steps "
               f"({100 * r['rebuild_share']:.0f} % of the step)", flush=True)
+        if args.wall_rows:
+            print(f"    wall rows read at {r['wall_width']} of {r['sph_capacity']} slots: step "
+                  f"{r['step_ms_wall_rows_narrow']:.2f} ms against "
+                  f"{r['step_ms_wall_rows_full']:.2f} ms at all slots", flush=True)
         for k, v in list(r.get("profile_us_per_step", {}).items())[:15]:
             print(f"    {v:9.1f} us/step  {k}")
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)

@@ -11,6 +11,9 @@ Dense format (N × K), which measured faster than Sparse on CPU for SPH sums.
 * jax-md's cell list and Dense format; the allocation (:func:`allocate`) and the rebuild
   inside the step (:func:`rebuild`) are ours, jitted, and give jax-md's lists row for row
   (tested), faster and without recompiling for every fresh list.
+* Rows that list only fluid neighbours (the walls', ``NeighborConfig.fluid_only_rows``) hold
+  them in their first slots; the sums read those rows at a narrower width
+  (``NeighborConfig.wall_width``, :func:`wall_rows`), which a rebuild checks like K.
 * Inside a compiled chunk an overflow only sets a flag; :func:`overflowed` reads it on the
   host, which then reallocates with more room (:func:`grow`) and redoes the chunk. No pair
   is ever silently dropped.
