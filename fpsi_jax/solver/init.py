@@ -38,8 +38,7 @@ def fit_wall_width(scene: Scene, phys: Physics) -> Physics:
     cfg = phys.neighbors
     if cfg is None or not cfg.fluid_only_rows:
         return phys
-    x = jnp.asarray(family_positions(scene, phys), stages.dtype(phys))
-    width = neighbors.wall_width(cfg, x)
+    width = neighbors.wall_width(cfg, family_positions(scene, phys))
     return dataclasses.replace(phys, neighbors=dataclasses.replace(cfg, wall_width=width))
 
 

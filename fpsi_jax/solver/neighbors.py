@@ -72,7 +72,7 @@ def _family_of(cfg: NeighborConfig):
     displacement, _ = space.free()
     box = np.asarray(cfg.box, dtype=np.float64)
     cut = cfg.list_radius
-    small = bool(np.any(box < 3.0 * cut))   # jax-md's condition for no cell list
+    small = _small(cfg)
     if small:
         warnings.warn(
             f"domain {tuple(box)} is smaller than 3 x cut-off {cut:.4g} in some direction: "
@@ -83,6 +83,11 @@ def _family_of(cfg: NeighborConfig):
         capacity_multiplier=cfg.capacity_multiplier, format=partition.Dense)
     cells = None if small else partition.cell_list(box_arr, cut, cfg.capacity_multiplier)
     return fns, cells, box_arr
+
+
+def _small(cfg: NeighborConfig) -> bool:
+    """jax-md's condition for no cell list: the domain under 3 cut-offs in a direction."""
+    return bool(np.any(np.asarray(cfg.box, np.float64) < 3.0 * cfg.list_radius))
 
 
 def neighbor_fns(cfg: NeighborConfig) -> partition.NeighborListFns:
@@ -147,12 +152,36 @@ def _wall_over(cfg: NeighborConfig, wall):
 
 def wall_width(cfg: NeighborConfig, x) -> int:
     """The width the sums over ``cfg.fluid_only_rows`` should read for positions ``x``
-    (scene frame): the most neighbours of such a row × the capacity multiplier, at least
-    one (0 for a config without such rows). Host side; compiles the same programs as
-    :func:`allocate` (run.driver.setup calls it on the scene's first positions)."""
-    if not cfg.fluid_only_rows or _family(cfg)[1] is None:
-        return 0        # jax-md's O(N²) list puts wall neighbours in those rows too
-    wall = _allocate(_key(cfg), x)[1]
+    (scene frame): the most fluid neighbours (within the list radius) of such a row × the
+    capacity multiplier, at least one; 0 for a config without such rows or without a cell
+    list (jax-md's O(N²) list puts wall neighbours in those rows too). Host side, numpy,
+    nothing compiled (run.driver.setup calls it on the scene's first positions): the
+    fluid is binned in cells of the list radius and each wall row counts the fluid of its
+    3 × 3 cells."""
+    if not cfg.fluid_only_rows or _small(cfg):
+        return 0
+    first, stop, n_f = cfg.fluid_only_rows
+    x = np.asarray(x, np.float64)
+    r = cfg.list_radius
+    lo = np.min(x, axis=0)
+    cell_f = np.floor((x[:n_f] - lo) / r).astype(np.int64)
+    cell_w = np.floor((x[first:stop] - lo) / r).astype(np.int64)
+    side = int(max(cell_f[:, 0].max(initial=0), cell_w[:, 0].max(initial=0))) + 3
+    key_f = (cell_f[:, 1] + 1) * side + cell_f[:, 0] + 1
+    order = np.argsort(key_f, kind="stable")
+    keys, xf = key_f[order], x[:n_f][order]
+    most = np.zeros(stop - first, np.int64)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            k = (cell_w[:, 1] + 1 + dy) * side + cell_w[:, 0] + 1 + dx
+            a, b = np.searchsorted(keys, k), np.searchsorted(keys, k, side="right")
+            width = int(np.max(b - a, initial=0))
+            if width == 0:
+                continue
+            j = np.minimum(a[:, None] + np.arange(width)[None, :], max(n_f - 1, 0))
+            d2 = np.sum((xf[j] - x[first:stop, None, :]) ** 2, axis=-1)
+            most += np.sum((d2 < r * r) & (np.arange(width)[None, :] < (b - a)[:, None]), axis=1)
+    wall = int(np.max(most, initial=0))
     return max(int(np.ceil(wall * cfg.capacity_multiplier)) + cfg.extra_capacity, 1)
 
 
