@@ -55,7 +55,7 @@ space = _Deferred("jax_md.space")
 def _key(cfg: NeighborConfig) -> NeighborConfig:
     """``cfg`` without :attr:`NeighborConfig.wall_width`, which only the step's sums and the
     overflow check read: the cell list, jax-md's functions and the allocation's programs
-    are the same for every width (setup measures the width with them)."""
+    are the same for every width."""
     return dataclasses.replace(cfg, wall_width=0) if cfg.wall_width else cfg
 
 
@@ -147,7 +147,7 @@ def _wall_count(cfg: NeighborConfig, idx, n: int) -> int:
 
 def _wall_over(cfg: NeighborConfig, wall):
     """Whether a wall row has more neighbours than the sums read (:attr:`wall_width`)."""
-    return (wall > cfg.wall_width) if cfg.wall_width else False
+    return (wall > cfg.wall_width) if cfg.wall_width and not _small(cfg) else False
 
 
 def wall_width(cfg: NeighborConfig, x) -> int:
@@ -188,8 +188,9 @@ def wall_width(cfg: NeighborConfig, x) -> int:
 def wall_rows(cfg: NeighborConfig, idx, first: int, n: int):
     """Rows ``first`` … ``first`` + n − 1 of the list ``idx``, all of which lie in
     ``cfg.fluid_only_rows``, at the width the sums read (:attr:`NeighborConfig.wall_width`;
-    the slots past it are padding while the list has not overflowed)."""
-    return idx[first:first + n, :cfg.wall_width or None]
+    the slots past it are padding while the list has not overflowed). All K slots when the
+    domain has no cell list (jax-md's O(N²) list also holds the walls there)."""
+    return idx[first:first + n, :(None if _small(cfg) else cfg.wall_width or None)]
 
 
 @functools.partial(jax.jit, static_argnums=0)
