@@ -78,8 +78,9 @@ def approximate_pressure(kern, n_fluid, x, h, rho, p, mass, idx_s):
 def reaction(pair_acc, mass_f, idx_f, idx_s, first):
     """Force of the fluid on each structure particle: −Σ m_F a_{F←S} over the pairs whose
     neighbour is S (W6.1). ``pair_acc`` (n_f, K, 2) is the acceleration each pair gives the
-    fluid row F (rows ``idx_f`` (n_f, K)); ``idx_s`` (n_s, K) are the structure rows of the
-    same list, S = ``first`` + row.
+    fluid row F (rows ``idx_f`` (n_f, K)); ``idx_s`` (n_s, K_s) are the structure rows of the
+    same list, S = ``first`` + row, at any width that holds their listed neighbours
+    (NeighborConfig.wall_width).
 
     The sum is read from the structure's side: the list is symmetric (one cut-off, one
     build), so each fluid neighbour F of S holds S in exactly one slot of its own row, found
@@ -87,7 +88,7 @@ def reaction(pair_acc, mass_f, idx_f, idx_s, first):
     fluid–structure pair term is counted once, so the result is minus the fluid's share up to
     the order of additions. (A scatter-add of all n_f·K pair terms onto the few structure
     particles did the same at 0.8 ms a step for the elastic gate; this costs
-    n_s·K² compares.)"""
+    n_s·K_s·K compares.)"""
     n_f, n_s = idx_f.shape[0], idx_s.shape[0]
     is_f = idx_s < n_f
     f = jnp.where(is_f, idx_s, 0)
