@@ -111,16 +111,10 @@ def allocate(cfg: NeighborConfig, x) -> partition.NeighborList:
     carries it as static pytree data, so every fresh list looked new to ``jax.jit`` and each
     ``simulate`` call traced and compiled its programs again; every list of ``cfg`` now
     carries the one cached cell list. A domain under 3 cut-offs keeps jax-md's allocate."""
-    return _allocate(cfg, x)[0]
-
-
-def _allocate(cfg: NeighborConfig, x):
-    """:func:`allocate` and the most neighbours of a ``fluid_only_rows`` row (0: none)."""
     fns, cells, _ = _family(cfg)
     xs = shift(cfg, x)
     if cells is None:
-        nbrs = fns.allocate(xs, extra_capacity=cfg.extra_capacity)
-        return nbrs, _wall_count(cfg, nbrs.idx, xs.shape[0])
+        return fns.allocate(xs, extra_capacity=cfg.extra_capacity)
     n = xs.shape[0]
     # jax-md's cell capacity: the fullest cell × multiplier, + extra
     cell_cap = max(int(int(_fullest_cell(_key(cfg), xs)) * cfg.capacity_multiplier)
@@ -134,7 +128,7 @@ def _allocate(cfg: NeighborConfig, x):
     err = err.update(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW,
                      jnp.asarray(occupancy > k or _wall_over(cfg, wall)))
     return partition.NeighborList(idx[:, :k], xs, err, cell_cap, k, partition.Dense,
-                                  cfg.list_radius, cells, fns.update), wall
+                                  cfg.list_radius, cells, fns.update)
 
 
 def _wall_count(cfg: NeighborConfig, idx, n: int) -> int:
