@@ -15,7 +15,9 @@ state, the median of ``--reps`` compiled chunks of ``--steps`` of
 and the rebuild interval seen in the whole-step chunk. ``--wall-rows`` adds, in the same
 process and interleaved chunk by chunk, the whole step with the wall rows read at the
 width setup measured (NeighborConfig.wall_width) against the same step reading all K
-slots (wall_width 0), each the median of ``--reps`` chunks. ``--profile`` adds the time per
+slots (wall_width 0), each the median of ``--reps`` chunks; ``--walls-apart`` likewise the
+step and its DEM part with the DEM wall contacts skipped while no disc can touch a wall
+(WallState.apart) against evaluated in every sub-step. ``--profile`` adds the time per
 named scope (``jax.named_scope`` in the stages and physics modules) from a JAX profiler
 trace of one chunk: the trace's per-op times are summed by the op's scope (ops outside any
 scope are listed by their primitive). Profiling slows small ops; read the shares, not the
@@ -85,19 +87,21 @@ def scope_profile(fn, state, steps):
 
 def interleaved_ms(fns, state, steps, reps):
     """{name: median ms per step} of compiled chunks ``fns`` timed one after another,
-    ``reps`` rounds (a slow spell of the machine hits every variant alike)."""
-    for fn in fns.values():
-        jax.block_until_ready(fn(state))
-    walls = {k: [] for k in fns}
+    ``reps`` rounds (a slow spell of the machine hits every variant alike). A value of
+    ``fns`` may be a pair (chunk, its own start state)."""
+    runs = {k: f if isinstance(f, tuple) else (f, state) for k, f in fns.items()}
+    for fn, s0 in runs.values():
+        jax.block_until_ready(fn(s0))
+    walls = {k: [] for k in runs}
     for _ in range(reps):
-        for k, fn in fns.items():
+        for k, (fn, s0) in runs.items():
             t0 = time.perf_counter()
-            jax.block_until_ready(fn(state))
+            jax.block_until_ready(fn(s0))
             walls[k].append(time.perf_counter() - t0)
     return {k: statistics.median(v) / steps * 1e3 for k, v in walls.items()}
 
 
-def bench(name, warm, steps, reps, profile, wall_rows=False):
+def bench(name, warm, steps, reps, profile, wall_rows=False, walls_apart=False):
     scene = cases.build(name, t_end=warm)
     state = simulate(scene, progress=False).state
     phys, params = setup(scene)
@@ -134,6 +138,16 @@ def bench(name, warm, steps, reps, profile, wall_rows=False):
                             state, steps, reps)
         row.update(wall_width=cfg.wall_width, step_ms_wall_rows_narrow=ab["narrow"],
                    step_ms_wall_rows_full=ab["full"])
+    if walls_apart and state.walls is not None:
+        # the same chunks from a state whose walls are always evaluated (apart=None)
+        always = state.replace(walls=state.walls.replace(apart=None))
+        ab = interleaved_ms({"skip": whole, "always": (whole, always),
+                             "dem_skip": dem, "dem_always": (dem, always)},
+                            state, steps, reps)
+        row.update(walls_apart_at_start=bool(state.walls.apart),
+                   walls_apart_in_chunk=bool(end.walls.apart),
+                   step_ms_walls_skipped=ab["skip"], step_ms_walls_always=ab["always"],
+                   discs_ms_walls_skipped=ab["dem_skip"], discs_ms_walls_always=ab["dem_always"])
     return row
 
 
@@ -146,11 +160,15 @@ def main():
     ap.add_argument("--profile", action="store_true")
     ap.add_argument("--wall-rows", action="store_true",
                     help="A/B: wall rows at their measured width against all K slots")
+    ap.add_argument("--walls-apart", action="store_true",
+                    help="A/B: DEM wall contacts skipped while no disc can touch a wall "
+                         "against evaluated every sub-step")
     ap.add_argument("--out", default=os.path.join(HERE, "results", "bench_coupled.json"))
     args = ap.parse_args()
     rows = []
     for name in args.cases:
-        r = bench(name, args.warm, args.steps, args.reps, args.profile, args.wall_rows)
+        r = bench(name, args.warm, args.steps, args.reps, args.profile, args.wall_rows,
+                  args.walls_apart)
         rows.append(r)
         print(f"{name}: step {r['step_ms']:.2f} ms; DEM {r['discs_ms']:.2f} ms "
               f"({r['dem_substeps']} sub-steps of {r['substep_us']:.0f} us, "
@@ -161,6 +179,12 @@ def main():
             print(f"    wall rows read at {r['wall_width']} of {r['sph_capacity']} slots: step "
                   f"{r['step_ms_wall_rows_narrow']:.2f} ms against "
                   f"{r['step_ms_wall_rows_full']:.2f} ms at all slots", flush=True)
+        if "step_ms_walls_skipped" in r:
+            print(f"    walls apart {r['walls_apart_at_start']} -> {r['walls_apart_in_chunk']}: "
+                  f"step {r['step_ms_walls_skipped']:.2f} against "
+                  f"{r['step_ms_walls_always']:.2f} ms, DEM part "
+                  f"{r['discs_ms_walls_skipped']:.2f} against "
+                  f"{r['discs_ms_walls_always']:.2f} ms", flush=True)
         for k, v in list(r.get("profile_us_per_step", {}).items())[:15]:
             print(f"    {v:9.1f} us/step  {k}")
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)

@@ -163,6 +163,25 @@ def wall_contacts(dp, x, v, omega, radius, mass, a, b, shear, dt, side=None):
                         jnp.broadcast_to(mass[:, None], shape), shear, dt)
 
 
+def walls_apart(x, radius, a, b, side, margin):
+    """Whether no disc–wall pair (n, W) can touch while every disc stays within ``margin``
+    of ``x`` (the DEM list's skin/2 about its build positions): a scalar bool.
+
+    The distance d from a centre to a segment's closest point is 1-Lipschitz in the
+    centre. A two-sided wall touches a disc only at d < R. A one-sided wall
+    (:func:`wall_pair_geometry`) also touches while the centre projects onto the segment
+    at a signed distance −2R < s < R, and there d = |s| < 2R. So a pair stays apart
+    while d − R > margin and, for a one-sided wall, either s > R + margin (clear on its
+    active side) or d > 2R + margin. Verlet's skin argument, applied to the walls."""
+    d = jnp.linalg.norm(wall_geometry(x, a, b), axis=-1)               # (n, W)
+    r = radius[:, None]
+    apart = d - r > margin
+    if side is not None:
+        s = jnp.sum((x[:, None, :] - a[None]) * inward_normals(a, b, side)[None], axis=-1)
+        apart &= (side[None] == 0) | (s > r + margin) | (d > 2.0 * r + margin)
+    return jnp.all(apart)
+
+
 def remap_history(old_idx, old_hist, new_idx):
     """Shear history re-addressed from the slots of ``old_idx`` to those of ``new_idx`` by the
     pair (i, j): a pair present in both keeps its value, a new pair starts at 0. Works for a
@@ -194,4 +213,5 @@ def kinetic_energy(v, omega, mass, inertia):
 
 
 __all__ = ["perp", "reduced_mass", "linear_contact", "pair_geometry", "disc_contacts",
-           "wall_contacts", "wall_geometry", "wall_pair_geometry", "inward_normals", "remap_history", "local_damping", "viscous_damping", "load_factor", "kinetic_energy"]
+           "wall_contacts", "wall_geometry", "wall_pair_geometry", "inward_normals", "walls_apart",
+           "remap_history", "local_damping", "viscous_damping", "load_factor", "kinetic_energy"]

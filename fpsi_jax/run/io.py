@@ -477,6 +477,9 @@ def load_checkpoint(path) -> Checkpoint:
 
 #: state leaves that only size regrown neighbour lists; a checkpoint without them resumes
 _RUN_TALLIES = (".status.sph_need", ".status.dem_need")
+#: state leaves a checkpoint may lack, with the value that is always safe: the walls then
+#: count as near until the DEM list's next rebuild asks them again
+_SAFE_DEFAULTS = {".walls.apart": False}
 
 
 def restore(state, ck: Checkpoint):
@@ -496,6 +499,9 @@ def restore(state, ck: Checkpoint):
         name = jax.tree_util.keystr(k)
         if name not in ck.leaves and name in _RUN_TALLIES:
             leaves.append(v)          # a file written before these tallies: start at 0
+            continue
+        if name not in ck.leaves and name in _SAFE_DEFAULTS:
+            leaves.append(jax.numpy.asarray(_SAFE_DEFAULTS[name]))
             continue
         if name not in ck.leaves:
             raise ParameterError(f"the checkpoint lacks {name}: the scene or options differ "

@@ -99,7 +99,7 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
                   walls=walls, fsi=fsi_state, fpi=fpi_state)
     if fluid is not None:
         state = state.replace(nbrs=neighbors.allocate(phys.neighbors, stages.sph_positions(state)))
-    return _initial_rates(phys, state, params)
+    return _initial_rates(phys, stages.with_walls_apart(phys, state), params)
 
 
 @functools.partial(jax.jit, static_argnums=0)

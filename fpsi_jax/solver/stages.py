@@ -106,6 +106,46 @@ def wet_grains(phys: Physics, state: State):
     return mask, state.fpi.idx
 
 
+def _moving_rows(phys: Physics):
+    """The rows the contact and wall sums run over (Physics.moving_discs), or None: all."""
+    return jnp.asarray(phys.moving_discs, jnp.int32) if phys.moving_discs else None
+
+
+def walls_apart(phys: Physics, solid, walls, x):
+    """Whether no moving disc can touch a wall while the DEM list built at ``x`` holds
+    (every disc within skin/2 of its build position: :func:`dem.walls_apart`)."""
+    own = functools.partial(take_rows, rows=_moving_rows(phys))
+    return dem.walls_apart(own(x), own(solid.radius), walls.a, walls.b, walls.side,
+                           0.5 * phys.dem_neighbors.skin)
+
+
+def with_walls_apart(phys: Physics, state: State) -> State:
+    """``state`` with ``walls.apart`` for a DEM list built at the current positions (after
+    an allocation)."""
+    if state.walls is None:
+        return state
+    return state.replace(walls=state.walls.replace(
+        apart=walls_apart(phys, state.solid, state.walls, state.solid.x)))
+
+
+def _wall_forces(dp, own, s, walls, wall_shear, dt):
+    """The walls' force, torque and new history on the rows ``own`` picks; zeros without
+    evaluating a pair while ``walls.apart`` (no disc can touch: a history of 0 is what the
+    contact law leaves on pairs apart)."""
+    def touching():
+        return dem.wall_contacts(dp, own(s.x), own(s.v), own(s.omega), own(s.radius),
+                                 own(s.mass), walls.a, walls.b, own(wall_shear), dt,
+                                 walls.side)[:3]
+
+    if walls.apart is None:
+        return touching()
+    shape = own(wall_shear).shape
+    return jax.lax.cond(walls.apart,
+                        lambda: (jnp.zeros(shape[:1] + (2,), s.x.dtype),
+                                 jnp.zeros(shape[:1], s.x.dtype), jnp.zeros(shape, s.x.dtype)),
+                        touching)
+
+
 def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
                 wet=None) -> State:
     """Every force on the discs at the state's (x, θ, v, ω): contacts, walls, bonds (with
@@ -117,7 +157,7 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
     x, v, omega = s.x, s.v, s.omega
     # the contact and wall sums run over the rows of the discs that move under their forces
     # (Physics.moving_discs); a kinematic disc's force is never read
-    rows = jnp.asarray(phys.moving_discs, jnp.int32) if phys.moving_discs else None
+    rows = _moving_rows(phys)
     own = functools.partial(take_rows, rows=rows)      # this call's rows of an (n, …) array
     with jax.named_scope("dem.contacts"):
         force, torque, shear, _ = dem.disc_contacts(dp, x, v, omega, s.radius, s.mass, s.fixed,
@@ -126,10 +166,7 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
     wall_shear = s.wall_shear
     if state.walls is not None:
         with jax.named_scope("dem.walls"):
-            fw, tw, wall_shear, _ = dem.wall_contacts(dp, own(x), own(v), own(omega),
-                                                      own(s.radius), own(s.mass),
-                                                      state.walls.a, state.walls.b,
-                                                      own(wall_shear), dt, state.walls.side)
+            fw, tw, wall_shear = _wall_forces(dp, own, s, state.walls, wall_shear, dt)
         force, torque = force + fw, torque + tw
     if rows is not None:
         force = jnp.zeros_like(x).at[rows].set(force)
@@ -184,11 +221,21 @@ def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, w
         old = state.solid_nbrs
         nbrs, rebuilt, need = neighbors.update(phys.dem_neighbors, old, x_new,
                                                about_centre=False)
-        shear = jax.lax.cond(rebuilt, dem.remap_history, lambda o, h, n: h,
-                             old.idx, s.shear, nbrs.idx)
+        walls = state.walls
+        if walls is None or walls.apart is None:
+            shear = jax.lax.cond(rebuilt, dem.remap_history, lambda o, h, n: h,
+                                 old.idx, s.shear, nbrs.idx)
+        else:
+            # a rebuild re-addresses the histories and asks the walls again at its positions
+            shear, apart = jax.lax.cond(
+                rebuilt,
+                lambda: (dem.remap_history(old.idx, s.shear, nbrs.idx),
+                         walls_apart(phys, s, walls, x_new)),
+                lambda: (s.shear, walls.apart))
+            walls = walls.replace(apart=apart)
     st = state.status
     state = state.replace(
-        t=t, solid_nbrs=nbrs,
+        t=t, solid_nbrs=nbrs, walls=walls,
         solid=s.replace(x=x_new, theta=th_new, v=v_half, omega=w_half, shear=shear),
         status=st.replace(rebuilds=st.rebuilds + rebuilt.astype(jnp.int32),
                           overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool),
@@ -227,7 +274,7 @@ def discs(phys: Physics, params: Params, state: State) -> State:
         status = health.check_wall_crossings(part.solid, state.solid.x, state.walls,
                                              state.step, status)
     return state.replace(solid=part.solid, bonds=part.bonds, solid_nbrs=part.solid_nbrs,
-                         status=status)
+                         walls=part.walls, status=status)
 
 
 def disc_exits(phys: Physics, params: Params, state: State) -> State:
