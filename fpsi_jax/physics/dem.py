@@ -163,9 +163,10 @@ def wall_contacts(dp, x, v, omega, radius, mass, a, b, shear, dt, side=None):
                         jnp.broadcast_to(mass[:, None], shape), shear, dt)
 
 
-def walls_apart(x, radius, a, b, side, margin):
+def walls_apart(x, radius, a, b, side, margin, held=None):
     """Whether no disc–wall pair (n, W) can touch while every disc stays within ``margin``
-    of ``x`` (the DEM list's skin/2 about its build positions): a scalar bool.
+    of ``x`` (the DEM list's skin/2 about its build positions): a scalar bool. Discs where
+    ``held`` (n,) is True (clamped or kinematic: their force is never read) do not count.
 
     The distance d from a centre to a segment's closest point is 1-Lipschitz in the
     centre. A two-sided wall touches a disc only at d < R. A one-sided wall
@@ -179,6 +180,8 @@ def walls_apart(x, radius, a, b, side, margin):
     if side is not None:
         s = jnp.sum((x[:, None, :] - a[None]) * inward_normals(a, b, side)[None], axis=-1)
         apart &= (side[None] == 0) | (s > r + margin) | (d > 2.0 * r + margin)
+    if held is not None:
+        apart |= held[:, None]
     return jnp.all(apart)
 
 

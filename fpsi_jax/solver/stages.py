@@ -112,11 +112,12 @@ def _moving_rows(phys: Physics):
 
 
 def walls_apart(phys: Physics, solid, walls, x):
-    """Whether no moving disc can touch a wall while the DEM list built at ``x`` holds
-    (every disc within skin/2 of its build position: :func:`dem.walls_apart`)."""
+    """Whether no free disc can touch a wall while the DEM list built at ``x`` holds
+    (every disc within skin/2 of its build position: :func:`dem.walls_apart`); a clamped
+    or kinematic disc (its force is never read) may touch one."""
     own = functools.partial(take_rows, rows=_moving_rows(phys))
     return dem.walls_apart(own(x), own(solid.radius), walls.a, walls.b, walls.side,
-                           0.5 * phys.dem_neighbors.skin)
+                           0.5 * phys.dem_neighbors.skin, own(solid.fixed))
 
 
 def with_walls_apart(phys: Physics, state: State) -> State:

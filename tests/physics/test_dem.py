@@ -337,6 +337,8 @@ def test_walls_apart_by_hand():
     assert apart(-0.5 * R, 1.0, x=0.1 + 3.0 * R)                      # behind, off its end
     assert not bool(dem.walls_apart(A([[0.05, 0.5], [0.05, 1.05 * R]]), A([R, R]), a, b,
                                     None, m))                         # one pair near: all near
+    assert bool(dem.walls_apart(A([[0.05, 0.5], [0.05, 1.05 * R]]), A([R, R]), a, b, None, m,
+                                jnp.asarray([False, True])))          # a held disc: ignored
 
 
 def test_walls_apart_discs_moved_within_the_margin_never_touch():
