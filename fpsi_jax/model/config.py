@@ -50,10 +50,11 @@ class NeighborConfig:
     wall_width    the sums over the ``fluid_only_rows`` read only their first
                   ``wall_width`` slots (0: all K). A rebuild fills a row's slots from the
                   first, so the rest of a wall row is padding: a wall particle sees fluid
-                  on one side only (elastic gate: at most 13 of K = 50). Set by
-                  ``run.driver.setup`` from the scene's first positions × the capacity
-                  multiplier; a rebuild that finds a wall row with more neighbours flags an
-                  overflow like a full row, and ``neighbors.grow`` widens it
+                  on one side only (elastic gate: 12 at the start, 19 in the flow, of
+                  K = 50). Set by ``run.driver.setup`` from the scene's first positions ×
+                  the capacity multiplier, and at least K/2 (neighbors.wall_width); a
+                  rebuild that finds a wall row with more neighbours flags an overflow
+                  like a full row, and ``neighbors.grow`` widens it
     """
 
     r_cut: float

@@ -409,8 +409,9 @@ def test_column_limit_leaves_out_only_the_columns_past_it():
 
 def test_wall_rows_are_read_at_the_width_setup_measured():
     """setup measures the wall rows' width on the scene's first positions (the most fluid
-    neighbours of a boundary row × the capacity multiplier); every listed neighbour of a
-    boundary row lies in its first ``wall_width`` slots, so wall_rows drops padding only."""
+    neighbours of a boundary row × the capacity multiplier, at least half the list's
+    width K); every listed neighbour of a boundary row lies in its first ``wall_width``
+    slots, so wall_rows drops padding only."""
     from fpsi_jax.run.driver import setup
     cfg, xs, nbrs = _dam_break_list(every_column=False)
     phys, _ = setup(cases.build("dam_break", dx=0.01))
@@ -418,7 +419,8 @@ def test_wall_rows_are_read_at_the_width_setup_measured():
     idx = np.asarray(nbrs.idx)
     n = xs.shape[0]
     most = int(np.max(np.sum(idx[first:stop] < n, axis=1)))
-    assert phys.neighbors.wall_width == int(np.ceil(most * cfg.capacity_multiplier))
+    assert phys.neighbors.wall_width == max(int(np.ceil(most * cfg.capacity_multiplier)),
+                                            neighbors.capacity(nbrs) // 2)
     assert phys.neighbors.wall_width < neighbors.capacity(nbrs)     # guard: it narrows
     rows = np.asarray(neighbors.wall_rows(phys.neighbors, nbrs.idx, first, stop - first))
     assert rows.shape == (stop - first, phys.neighbors.wall_width)
