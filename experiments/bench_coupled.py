@@ -15,7 +15,8 @@ state, the median of ``--reps`` compiled chunks of ``--steps`` of
 and the rebuild interval seen in the whole-step chunk. ``--wall-rows`` adds, in the same
 process and interleaved chunk by chunk, the whole step with the wall rows read at the
 width setup measured (NeighborConfig.wall_width) against the same step reading all K
-slots (wall_width 0), each the median of ``--reps`` chunks; ``--walls-apart`` likewise the
+slots (wall_width 0), each the median of ``--reps`` chunks; ``--wall-widths 15 22 25`` the
+step at each of those widths; ``--walls-apart`` likewise the
 step and its DEM part with the DEM wall contacts skipped while no disc can touch a wall
 (WallState.apart) against evaluated in every sub-step. ``--profile`` adds the time per
 named scope (``jax.named_scope`` in the stages and physics modules) from a JAX profiler
@@ -101,7 +102,8 @@ def interleaved_ms(fns, state, steps, reps):
     return {k: statistics.median(v) / steps * 1e3 for k, v in walls.items()}
 
 
-def bench(name, warm, steps, reps, profile, wall_rows=False, walls_apart=False):
+def bench(name, warm, steps, reps, profile, wall_rows=False, walls_apart=False,
+          wall_widths=()):
     scene = cases.build(name, t_end=warm)
     state = simulate(scene, progress=False).state
     phys, params = setup(scene)
@@ -138,6 +140,12 @@ def bench(name, warm, steps, reps, profile, wall_rows=False, walls_apart=False):
                             state, steps, reps)
         row.update(wall_width=cfg.wall_width, step_ms_wall_rows_narrow=ab["narrow"],
                    step_ms_wall_rows_full=ab["full"])
+    if wall_widths:
+        fns = {}
+        for w in wall_widths:
+            ph = dataclasses.replace(phys, neighbors=dataclasses.replace(cfg, wall_width=w))
+            fns[w] = _loop(lambda i, s, ph=ph: solver.step(ph, s, p), steps)
+        row["step_ms_at_wall_width"] = interleaved_ms(fns, state, steps, reps)
     if walls_apart and state.walls is not None:
         # the same chunks from a state whose walls are always evaluated (apart=None)
         always = state.replace(walls=state.walls.replace(apart=None))
@@ -160,6 +168,8 @@ def main():
     ap.add_argument("--profile", action="store_true")
     ap.add_argument("--wall-rows", action="store_true",
                     help="A/B: wall rows at their measured width against all K slots")
+    ap.add_argument("--wall-widths", nargs="*", type=int, default=[],
+                    help="A/B: the whole step at each of these wall-row widths")
     ap.add_argument("--walls-apart", action="store_true",
                     help="A/B: DEM wall contacts skipped while no disc can touch a wall "
                          "against evaluated every sub-step")
@@ -168,7 +178,7 @@ def main():
     rows = []
     for name in args.cases:
         r = bench(name, args.warm, args.steps, args.reps, args.profile, args.wall_rows,
-                  args.walls_apart)
+                  args.walls_apart, args.wall_widths)
         rows.append(r)
         print(f"{name}: step {r['step_ms']:.2f} ms; DEM {r['discs_ms']:.2f} ms "
               f"({r['dem_substeps']} sub-steps of {r['substep_us']:.0f} us, "
@@ -179,6 +189,9 @@ def main():
             print(f"    wall rows read at {r['wall_width']} of {r['sph_capacity']} slots: step "
                   f"{r['step_ms_wall_rows_narrow']:.2f} ms against "
                   f"{r['step_ms_wall_rows_full']:.2f} ms at all slots", flush=True)
+        if "step_ms_at_wall_width" in r:
+            print("    step at wall-row width " + ", ".join(
+                f"{w}: {ms:.2f} ms" for w, ms in r["step_ms_at_wall_width"].items()), flush=True)
         if "step_ms_walls_skipped" in r:
             print(f"    walls apart {r['walls_apart_at_start']} -> {r['walls_apart_in_chunk']}: "
                   f"step {r['step_ms_walls_skipped']:.2f} against "
