@@ -85,7 +85,7 @@ class BondState:
 @pytree_dataclass
 class WallState:
     """DEM line-segment walls a[k] → b[k] (fixed) and their active sides (w,): +1 the left
-    of a → b, −1 the right, 0 both (scene.WallBlock). ``apart`` (bool scalar): no moving
+    of a → b, −1 the right, 0 both (scene.WallBlock). ``apart`` (bool scalar): no free
     disc can touch a wall until the DEM list is next rebuilt (physics.dem.walls_apart at
     the list's build positions), so the sub-steps skip the wall contacts; None: always
     evaluate them."""
