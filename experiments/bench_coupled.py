@@ -16,9 +16,9 @@ and the rebuild interval seen in the whole-step chunk. ``--wall-rows`` adds, in 
 process and interleaved chunk by chunk, the whole step with the wall rows read at the
 width setup measured (NeighborConfig.wall_width) against the same step reading all K
 slots (wall_width 0), each the median of ``--reps`` chunks; ``--wall-widths 15 22 25`` the
-step at each of those widths; ``--walls-apart`` likewise the
-step and its DEM part with the DEM wall contacts skipped while no disc can touch a wall
-(WallState.apart) against evaluated in every sub-step. ``--profile`` adds the time per
+step at each of those widths; ``--walls-apart`` the step and its DEM part with the DEM wall
+contacts skipped while no disc can touch a wall (WallState.apart) against evaluated in
+every sub-step. ``--profile`` adds the time per
 named scope (``jax.named_scope`` in the stages and physics modules) from a JAX profiler
 trace of one chunk: the trace's per-op times are summed by the op's scope (ops outside any
 scope are listed by their primitive). Profiling slows small ops; read the shares, not the
