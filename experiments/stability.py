@@ -49,6 +49,7 @@ DT_CASES = {
     "elastic_gate_dem": ("elastic_gate", GATE_COARSE, 0.1, True, None),
     "elastic_gate_sph": ("elastic_gate", GATE_COARSE, 0.1, False, None),
     "sedimentation": ("sedimentation", {}, 0.3, False, None),
+    "two_phase_dam_break": ("two_phase_dam_break", {}, 0.15, False, None),
 }
 FACTORS = (0.5, 1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0)
 

@@ -321,7 +321,7 @@ class Physics:
         # 0.4 h: with the fluid-only step (3.5× physics.md's) a 0.25 h skin was rebuilt every
         # ~5 steps of the 24k dam break and overflowed to K = 48; 0.4 h measured fastest
         # (0.25 / 0.3 / 0.35 / 0.4 / 0.45 / 0.6 h: 0.51 / 0.94 / 0.96 / 0.98 / 0.81 / 0.83 M
-        # particle-steps/s on one core). A fluid-coupled structure keeps physics.md's step
+        # particle-steps/s on one core). A structure the fluid moves keeps physics.md's step
         # and the 0.25 h skin that suits it (Scene.fsi_coupled).
         skin_factor = opts.pop("skin", 0.25 if scene.fsi_coupled else 0.4)
         cap = opts.pop("capacity_multiplier", 1.25)

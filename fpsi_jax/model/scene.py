@@ -179,10 +179,20 @@ class Scene:
 
     @property
     def fsi_coupled(self) -> bool:
-        """Structure discs coupled to the fluid (option fsi): such a scene keeps physics.md's
-        step coefficients and the 0.25 h skin that suits them (solver.timestep.FSI_SPH_CFL)."""
-        return (self.fluid is not None and self.solid is not None
-                and self.options.get("fsi") is not None)
+        """Structure discs that the fluid moves (option fsi and at least one structure disc
+        not kinematic): such a scene keeps physics.md's step coefficients and the 0.25 h skin
+        that suits them (solver.timestep.FSI_SPH_CFL). The fluid force held over the DEM
+        sub-steps loses accuracy on a deformable structure long before the step is unstable
+        (docs/design.md, Time-step coefficients); a structure whose discs are all kinematic
+        (a gate lifted at a set speed) never reads that force, so its scene takes the
+        fluid-only and grain coefficients."""
+        if self.fluid is None or self.solid is None or self.options.get("fsi") is None:
+            return False
+        so = self.solid
+        moved = ~np.asarray(so.fixed, bool)
+        if so.structure is not None:
+            moved &= np.asarray(so.structure, bool)
+        return bool(moved.any())
 
     def wall_range(self) -> float:
         """Reach r0 = κ min(Δx_wall, Δp) of the wall backstop (sph.wall_repulsion_scalar),

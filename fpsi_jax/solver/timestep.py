@@ -30,9 +30,9 @@ def _grains(scene: Scene, phys: Physics):
 # Step coefficients. physics.md quotes 0.25 h/(c0+|v|) and 0.2 √(m/k); the sweeps of
 # experiments/stability.py found those 5–6.5× below the step where the runs blow up, so the
 # fluid-only and DEM-only coefficients below keep a measured margin of 1.8–1.9 instead. A
-# structure coupled to the fluid (option fsi) keeps physics.md's 0.25 and 0.2: there the
-# step is sized for the accuracy of the force-holding coupling, not for stability
-# (docs/design.md, "Step coefficients", has the figures).
+# structure the fluid moves (option fsi, Scene.fsi_coupled) keeps physics.md's 0.25 and
+# 0.2: the step is sized for the accuracy of the force-holding coupling, not for
+# stability (docs/design.md, "Time-step coefficients", has the figures).
 SPH_CFL = 0.875
 FSI_SPH_CFL = 0.25
 DEM_DT_FACTOR = 0.55
@@ -42,9 +42,10 @@ FSI_DEM_DT_FACTOR = 0.2
 def sph_dt(scene: Scene, params: Params, a_max: float | None = None,
            phys: Physics | None = None) -> float:
     """SPH bound (physics.md §Time integration, with the acoustic coefficient SPH_CFL, or
-    FSI_SPH_CFL with option fsi, instead of 0.25): Δt ≤ min(CFL h/(c0 + |v|max),
-    0.125 h²/ν, 0.25 √(h/|a|max), r0/(c0 √β) with the wall backstop), h the smallest
-    smoothing length, |v|max the scene's velocity scale and |a|max = max(|g|, a_max).
+    FSI_SPH_CFL for a structure the fluid moves (Scene.fsi_coupled), instead of 0.25):
+    Δt ≤ min(CFL h/(c0 + |v|max), 0.125 h²/ν, 0.25 √(h/|a|max), r0/(c0 √β) with the wall
+    backstop), h the smallest smoothing length, |v|max the scene's velocity scale and
+    |a|max = max(|g|, a_max).
 
     With grains in the fluid (fpi) the sound speed in ερ is c0/√ε, so c0/√ε_lo replaces c0,
     ε_lo = max(EPS_MIN, 1 − n_grain V_p,max W(0)) the least voidage the grains can make (3D
@@ -91,8 +92,8 @@ def sph_dt(scene: Scene, params: Params, a_max: float | None = None,
 
 def dem_dt(scene: Scene, params: Params, phys: Physics | None = None) -> float:
     """DEM bound (physics.md §Time integration, with DEM_DT_FACTOR, or FSI_DEM_DT_FACTOR =
-    0.2 with option fsi, instead of 0.2): Δt ≤ factor √(m_min/k_max), and the same for
-    rotation, factor √(J_min/k_rot). k_max adds the contact spring and the stiffest bond
+    0.2 for a structure the fluid moves (Scene.fsi_coupled), instead of 0.2):
+    Δt ≤ factor √(m_min/k_max), and the same for rotation, factor √(J_min/k_rot). k_max adds the contact spring and the stiffest bond
     (k̄ A); k_rot = k̄_n I + (k̄_s A + k_s) R_max² for the stiffest bond."""
     so, dp, bp = scene.solid, params.dem, params.bond
     section = _physics(scene, phys).bond_section
@@ -160,8 +161,8 @@ def check_dt(scene: Scene, dt: float, params: Params | None = None, substeps: in
         sub = f" with dem_substeps = {substeps}" if substeps > 1 else ""
         raise ParameterError(
             f"dt = {dt:.4g} s exceeds the stability bound {bound:.4g} s{sub} "
-            f"(SPH: {SPH_CFL:g} h/(c0+|v|max), {FSI_SPH_CFL:g} with fsi, 0.125 h²/ν, "
-            "0.25 √(h/|a|max), r0/(c0 √β) for the wall backstop; "
-            f"DEM: {DEM_DT_FACTOR:g} √(m/k), {FSI_DEM_DT_FACTOR:g} √(m/k) coupled to "
-            "the fluid, per "
+            f"(SPH: {SPH_CFL:g} h/(c0+|v|max), {FSI_SPH_CFL:g} with a structure the fluid "
+            "moves, 0.125 h²/ν, 0.25 √(h/|a|max), r0/(c0 √β) for the wall backstop; "
+            f"DEM: {DEM_DT_FACTOR:g} √(m/k), {FSI_DEM_DT_FACTOR:g} √(m/k) with such a "
+            "structure, per "
             f"sub-step); allowed (0, {bound:.4g}] s")

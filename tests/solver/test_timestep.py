@@ -49,6 +49,29 @@ def test_fluid_coupled_structure_keeps_physics_md_step_coefficients():
     assert ratio == pytest.approx(0.2 / timestep.DEM_DT_FACTOR)
 
 
+def test_kinematic_structure_takes_the_fluid_only_step_coefficients():
+    """A structure whose discs are all kinematic never reads the fluid force held over the
+    sub-steps, so option fsi alone does not shorten the step: the plate with every disc
+    held takes SPH_CFL, DEM_DT_FACTOR and the 0.4 h skin; one free disc brings back 0.25,
+    0.2 and 0.25 h."""
+    sc = coarse_plate()
+    held = dataclasses.replace(sc, solid=dataclasses.replace(
+        sc.solid, fixed=np.ones(sc.solid.n, bool)))
+    assert sc.fsi_coupled and not held.fsi_coupled
+    h = float(sc.fluid.h.min())
+    acoustic = lambda cfl: cfl * h / (float(sc.params.sph.c0) + sc.v_max)
+    assert timestep.sph_dt(held, held.params) == pytest.approx(acoustic(timestep.SPH_CFL))
+    h_max = max(float(np.max(sc.fluid.h)), float(np.max(sc.boundary.h)))
+    assert Physics.for_scene(held).neighbors.skin == pytest.approx(0.4 * h_max)
+    assert Physics.for_scene(sc).neighbors.skin == pytest.approx(0.25 * h_max)
+    one_free = np.ones(sc.solid.n, bool)
+    one_free[np.nonzero(np.asarray(sc.solid.structure if sc.solid.structure is not None
+                                   else np.ones(sc.solid.n, bool)))[0][0]] = False
+    again = dataclasses.replace(sc, solid=dataclasses.replace(sc.solid, fixed=one_free))
+    assert again.fsi_coupled
+    assert timestep.sph_dt(again, again.params) == pytest.approx(acoustic(0.25))
+
+
 def test_wall_range_from_the_scene_and_its_time_step_bound():
     """r0 = 0.8 min(√(m_b/ρ0), Δp); the derived step respects Δt ≤ r0/(c0 √β). The tank's
     boundary spacing is 5 mm fitted to its 0.584 m: 0.584/117 m."""
