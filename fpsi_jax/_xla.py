@@ -37,9 +37,8 @@ decides for itself, since the setting is JAX's and covers all of its programs): 
 persistent compilation cache, in ``$FPSI_CACHE_DIR`` or ``~/.cache/fpsi-jax/xla`` (under
 ``$XDG_CACHE_HOME`` when set), every program however quick to compile; above 1 GiB the
 oldest entries are deleted when it is turned on (:func:`prune`). A run's fixed cost is
-mostly compilation: the step's chunk, the list allocation's programs and the ~180 small
-programs jax-md runs when it is imported; a repeated run of the same scene loads them
-instead (the elastic gate's 134-step run: 13.5 s → 6.1 s). The cache key covers the
+mostly compilation: the step's chunk, the set-up's and the list allocation's programs; a
+repeated run of the same scene loads them instead. The cache key covers the
 program, the XLA flags, the device and the JAX version, so a changed scene or setting
 compiles afresh. Left alone
 when the user has chosen a cache directory for JAX (``JAX_COMPILATION_CACHE_DIR`` or

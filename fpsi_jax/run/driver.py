@@ -157,18 +157,54 @@ def grow(phys: Physics, failed: State) -> Physics:
     return phys
 
 
-def first_state(scene: Scene, phys: Physics, params: Params, max_regrowths: int = 12):
+def first_state(scene: Scene, phys: Physics, params: Params, max_regrowths: int = 12,
+                beside: Callable | None = None):
     """(Physics, the initial State) with lists that hold the first positions: a list whose
     allocation overflowed (only the wall rows' width can, NeighborConfig.wall_width, when
-    ``phys`` was not measured on these positions by :func:`setup`) is grown and the state
-    made afresh, since its first rates were computed from the cut rows."""
+    ``phys`` was not measured on these positions by :func:`setup`) is grown and allocated
+    afresh before the first rates are evaluated.
+
+    ``beside(phys, state)``, if given, runs in a second thread while the first rates are
+    compiled and evaluated, on the allocated state (which has the shapes of every later
+    state): :func:`simulate` compiles its chunk there. Compiling a program is one core's
+    work, so on a machine with two cores the two compilations overlap (a coupled scene's
+    set-up and chunk take 4–10 s each)."""
     for _ in range(max_regrowths + 1):
-        state = init.init_state(scene, phys, params)
+        state = init.allocated_state(scene, phys)
         if state.nbrs is None or not neighbors.overflowed(state.nbrs):
-            return phys, state
+            with _running_beside(beside, phys, state):
+                return phys, init.initial_rates(phys, state, params)
         phys = grow(phys, state)
     raise RuntimeError(f"the first neighbour lists still overflowed after {max_regrowths} "
                        "regrowths")
+
+
+class _running_beside:
+    """Context: ``fn(*args)`` in a daemon thread from entry, joined at exit. What it raises
+    is dropped: it only prepares work (a compilation) that the main thread does again, and
+    fails the same way there, if it must."""
+
+    def __init__(self, fn, *args):
+        self._thread = None
+        if fn is not None:
+            self._thread = threading.Thread(target=self._run, args=(fn, args), daemon=True)
+
+    @staticmethod
+    def _run(fn, args):
+        try:
+            fn(*args)
+        except Exception:       # noqa: BLE001 (see the class docstring)
+            pass
+
+    def __enter__(self):
+        if self._thread is not None:
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self._thread is not None:
+            self._thread.join()
+        return False
 
 
 def reallocate(phys: Physics, state: State) -> State:
@@ -283,7 +319,11 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
         state = io.restore(init.init_state(scene, phys, p), ck)
         io.truncate_probes(output, float(state.t))
     elif state is None:
-        phys, state = first_state(scene, phys, p)
+        def compile_chunk(ph, st):        # the chunks' program, run for 0 steps
+            jax.block_until_ready(_advance(ph, st, p, jnp.asarray(0, jnp.int32), chunk,
+                                           observe))
+
+        phys, state = first_state(scene, phys, p, beside=compile_chunk)
     done = int(state.step)
     writer = None
     if output:

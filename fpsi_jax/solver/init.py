@@ -44,6 +44,12 @@ def fit_wall_width(scene: Scene, phys: Physics) -> Physics:
 
 def init_state(scene: Scene, phys: Physics, params: Params) -> State:
     """Arrays on device, neighbour lists allocated, initial rates evaluated."""
+    return initial_rates(phys, allocated_state(scene, phys), params)
+
+
+def allocated_state(scene: Scene, phys: Physics) -> State:
+    """The scene's arrays on the device with the neighbour lists allocated for ``phys``, the
+    rates not yet evaluated (:func:`initial_rates`): the shapes of every later state."""
     dt_ = stages.dtype(phys)
     a = lambda v: jnp.asarray(v, dtype=dt_)
     z = jnp.zeros_like
@@ -99,14 +105,14 @@ def init_state(scene: Scene, phys: Physics, params: Params) -> State:
                   walls=walls, fsi=fsi_state, fpi=fpi_state)
     if fluid is not None:
         state = state.replace(nbrs=neighbors.allocate(phys.neighbors, stages.sph_positions(state)))
-    return _initial_rates(phys, stages.with_walls_apart(phys, state), params)
+    return stages.with_walls_apart(phys, state)
 
 
 @functools.partial(jax.jit, static_argnums=0)
-def _initial_rates(phys: Physics, state: State, params: Params) -> State:
-    """The voidage (with grains) and :func:`refresh_rates` of a fresh state, as one compiled
-    program. Run eagerly, the same evaluation dispatched (and compiled) each of its ~1 300
-    primitives on its own: 12.6 s of the coarse gate's 17 s set-up."""
+def initial_rates(phys: Physics, state: State, params: Params) -> State:
+    """The voidage (with grains) and :func:`refresh_rates` of an :func:`allocated_state`, as
+    one compiled program. Run eagerly, the same evaluation dispatched (and compiled) each of
+    its ~1 300 primitives on its own: 12.6 s of the coarse gate's 17 s set-up."""
     if phys.has_fpi:
         state = state.replace(fpi=state.fpi.replace(eps=initial_voidage(phys, state)))
     return refresh_rates(phys, state, params)

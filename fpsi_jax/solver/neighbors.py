@@ -23,6 +23,9 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib
+import importlib.util
+import sys
+import types
 import warnings
 
 import jax
@@ -34,18 +37,41 @@ from ..physics.pairs import over_row_blocks, rows_of
 
 
 class _Deferred:
-    """A module imported on first attribute access. jax_md's package ``__init__`` imports
-    all of jax-md (rigid_body, nn, … run JAX at import: ~5 s on this machine), and only
-    ``partition`` and ``space`` are used here, first when a list is allocated; deferring
-    them lets ``setup`` refuse bad input (and ``fpsi list`` answer) without that wait."""
+    """A module imported on first attribute access (:func:`import_lean`), so that ``setup``
+    can refuse bad input (and ``fpsi list`` answer) before any of jax-md is loaded."""
 
     def __init__(self, name):
         self._name, self._module = name, None
 
     def __getattr__(self, attr):
         if self._module is None:
-            self._module = importlib.import_module(self._name)
+            self._module = import_lean(self._name)
         return getattr(self._module, attr)
+
+
+def import_lean(name: str):
+    """Import the jax-md submodule ``name`` without running the package's ``__init__``.
+
+    jax_md/__init__.py imports all of jax-md, and some of its modules run JAX at import
+    (rigid_body computes shape moments, nn builds its models): 6–8 s and ~120 small
+    compiled programs in every fresh process, of which only ``partition`` and ``space``
+    (and what they import) are used here (0.06 s alone). While they load, a bare package
+    module with jax-md's search path stands in for ``jax_md`` in ``sys.modules``; it is
+    removed afterwards, so a later ``import jax_md`` (by the user) runs the real
+    ``__init__``, which finds these submodules already loaded and uses the same module
+    objects. If jax_md is already imported, this is a plain import."""
+    if "jax_md" in sys.modules or name in sys.modules:
+        return importlib.import_module(name)
+    spec = importlib.util.find_spec("jax_md")
+    stand_in = types.ModuleType("jax_md")
+    stand_in.__path__ = list(spec.submodule_search_locations)
+    stand_in.__spec__ = spec
+    sys.modules["jax_md"] = stand_in
+    try:
+        return importlib.import_module(name)
+    finally:
+        if sys.modules.get("jax_md") is stand_in:
+            del sys.modules["jax_md"]
 
 
 partition = _Deferred("jax_md.partition")

@@ -13,9 +13,9 @@ import pytest
 from fpsi_jax import cases
 from fpsi_jax.cases import overrides
 from fpsi_jax.model.errors import ParameterError, SimulationError
-from fpsi_jax.run import io
+from fpsi_jax.run import driver, io
 from fpsi_jax.run.driver import _advance, setup, simulate
-from fpsi_jax.solver import forward, init, neighbors
+from fpsi_jax.solver import forward, init, neighbors, stages
 
 
 def test_unstable_run_stops_with_diagnosis_and_keeps_good_frames(tmp_path):
@@ -159,12 +159,41 @@ def test_last_short_chunk_reuses_the_compiled_chunk_and_equals_a_rollout(tiny_ta
     np.testing.assert_array_equal(np.asarray(o_full)[:4], np.asarray(o_ref))
 
 
+def test_the_chunk_compiled_beside_the_set_up_is_the_one_the_run_uses(tiny_tank):
+    """simulate compiles its chunk in a second thread while the first rates are evaluated
+    (driver.first_state ``beside``): the program compiled there is the one the chunks then
+    call, so a fresh run adds one compiled chunk, not two, and the result is the same as
+    stepping the set-up's state with that program."""
+    n0 = _advance._cache_size()
+    res = simulate(tiny_tank, t_end=0.0077, every=0.0077 / 3, progress=False)
+    assert _advance._cache_size() == n0 + 1
+    phys, params = setup(tiny_tank)
+    p = params.as_arrays(stages.dtype(phys))
+    phys, st = driver.first_state(tiny_tank, phys, p)
+    chunk, done = max(1, round(0.0077 / 3 / float(params.dt))), 0
+    while done < res.n_steps:
+        n = min(chunk, res.n_steps - done)
+        st, _ = _advance(phys, st, p, jnp.int32(n), chunk, None)
+        done += n
+    np.testing.assert_array_equal(np.asarray(res.state.fluid.x), np.asarray(st.fluid.x))
+
+
+def test_work_beside_the_set_up_that_fails_is_dropped():
+    """What the helper thread raises never reaches the run (the main thread redoes it)."""
+    def fail(*_):
+        raise RuntimeError("boom")
+    with driver._running_beside(fail, 1):
+        pass
+    with driver._running_beside(None):
+        pass
+
+
 def test_a_second_run_of_the_same_scene_compiles_nothing(tiny_tank):
     """Fresh neighbour lists of the same capacity are the same pytree to jax.jit: a second
     simulate (a sweep, a calibration, validate) reuses the compiled chunk and set-up."""
     simulate(tiny_tank, t_end=0.004, every=0.002, progress=False)
-    n_adv, n_init = _advance._cache_size(), init._initial_rates._cache_size()
+    n_adv, n_init = _advance._cache_size(), init.initial_rates._cache_size()
     res = simulate(tiny_tank, t_end=0.004, every=0.002, progress=False)
     assert res.n_steps > 0
     assert _advance._cache_size() == n_adv
-    assert init._initial_rates._cache_size() == n_init
+    assert init.initial_rates._cache_size() == n_init

@@ -1,7 +1,10 @@
 """Neighbour lists (fpsi_jax.solver.neighbors): the list rebuild and allocation equal
 jax-md's own, growing adds room, the rebuild happens past half the skin, and jax-md is
-imported only when a list is built. The driver's redo of an overflowed chunk is tested in
+imported only when a list is built, without the rest of jax-md. The driver's redo of an overflowed chunk is tested in
 tests/run/test_simulate.py."""
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -455,3 +458,23 @@ def test_a_wall_row_past_its_width_overflows_and_grow_widens_only_it():
         fits = neighbors.allocate(grown, x)
         assert not neighbors.overflowed(fits)
         assert not neighbors.overflowed(neighbors.rebuild(grown, fits, xs))
+
+
+def test_jax_md_lists_load_without_the_rest_of_jax_md():
+    """neighbors.import_lean loads jax-md's partition and space without its package
+    __init__ (which runs JAX at import for modules we never use); a later ``import jax_md``
+    still gives the whole package, with the same partition module."""
+    code = (
+        "import sys\n"
+        "from fpsi_jax.solver import neighbors\n"
+        "dense = neighbors.partition.Dense\n"
+        "assert 'jax_md' not in sys.modules and 'jax_md.energy' not in sys.modules\n"
+        "assert 'jax_md.partition' in sys.modules\n"
+        "import jax_md\n"
+        "assert jax_md.partition is sys.modules['jax_md.partition']\n"
+        "assert jax_md.partition.Dense is dense and hasattr(jax_md, 'energy')\n"
+        "print('ok')\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().endswith("ok")
