@@ -65,7 +65,6 @@ import functools
 
 from typing import NamedTuple
 
-import jax
 import jax.numpy as jnp
 
 from ..model.options import Drag, Voidage
@@ -385,17 +384,9 @@ def voidage_at(kern, x_f, h_f, x_p, vol_p, mode=Voidage.AREA, walls=None):
     the same kernel sums as the step (for scene builders: fluid particles among grains get
     mass ε ρ0 Δx², so that their volume m/(ερ) is their lattice cell). ``walls`` (a, b,
     side) of the DEM walls: the grains' wall images count (:func:`wall_images`)."""
-    walls = None if walls is None else tuple(jnp.asarray(w) for w in walls)
-    return _voidage_at(kern, jnp.asarray(x_f), jnp.asarray(h_f), jnp.asarray(x_p),
-                       jnp.asarray(vol_p), Voidage(mode), walls)
-
-
-@functools.partial(jax.jit, static_argnums=(0, 5))
-def _voidage_at(kern, x_f, h_f, x_p, vol_p, mode, walls):
-    """:func:`voidage_at` as one compiled program (run eagerly, its ~50 primitives were each
-    compiled on their own: 2.3 s of a two-phase scene's 2.4 s build)."""
+    x_f, h_f, x_p = jnp.asarray(x_f), jnp.asarray(h_f), jnp.asarray(x_p)
     n_f = x_f.shape[0]
     idx = jnp.broadcast_to(jnp.arange(n_f), (x_p.shape[0], n_f))
     images = None if walls is None else wall_images(x_p, *walls)
     rows = grain_rows(kern, x_f, h_f, jnp.ones(n_f, x_f.dtype), x_p, idx, n_f, images)
-    return fluid_voidage(rows.ws, vol_p, rows.idx, rows.valid, n_f, mode)
+    return fluid_voidage(rows.ws, jnp.asarray(vol_p), rows.idx, rows.valid, n_f, mode)
