@@ -14,6 +14,7 @@ Between chunks the driver reads the chunk's :class:`~fpsi_jax.state.Status`:
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import signal
@@ -179,32 +180,26 @@ def first_state(scene: Scene, phys: Physics, params: Params, max_regrowths: int 
                        "regrowths")
 
 
-class _running_beside:
+@contextlib.contextmanager
+def _running_beside(fn, *args):
     """Context: ``fn(*args)`` in a daemon thread from entry, joined at exit. What it raises
     is dropped: it only prepares work (a compilation) that the main thread does again, and
     fails the same way there, if it must."""
-
-    def __init__(self, fn, *args):
-        self._thread = None
-        if fn is not None:
-            self._thread = threading.Thread(target=self._run, args=(fn, args), daemon=True)
-
-    @staticmethod
-    def _run(fn, args):
+    def quietly():
         try:
             fn(*args)
-        except Exception:       # noqa: BLE001 (see the class docstring)
+        except Exception:       # noqa: BLE001 (see the docstring)
             pass
 
-    def __enter__(self):
-        if self._thread is not None:
-            self._thread.start()
-        return self
-
-    def __exit__(self, *exc):
-        if self._thread is not None:
-            self._thread.join()
-        return False
+    thread = None
+    if fn is not None:
+        thread = threading.Thread(target=quietly, daemon=True)
+        thread.start()
+    try:
+        yield
+    finally:
+        if thread is not None:
+            thread.join()
 
 
 def reallocate(phys: Physics, state: State) -> State:
