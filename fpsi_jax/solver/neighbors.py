@@ -24,6 +24,7 @@ import dataclasses
 import functools
 import importlib
 import importlib.util
+import os
 import sys
 import types
 import warnings
@@ -102,13 +103,24 @@ def _family_of(cfg: NeighborConfig):
     if small:
         warnings.warn(
             f"domain {tuple(box)} is smaller than 3 x cut-off {cut:.4g} in some direction: "
-            "jax-md falls back to an O(N^2) neighbour search", stacklevel=3)
+            "jax-md falls back to an O(N^2) neighbour search", stacklevel=_caller_level())
     box_arr = jnp.asarray(box, jnp.float32)       # jax-md's neighbor_list casts it so
     fns = partition.neighbor_list(
         displacement, box_arr, cfg.r_cut, dr_threshold=cfg.skin,
         capacity_multiplier=cfg.capacity_multiplier, format=partition.Dense)
     cells = None if small else partition.cell_list(box_arr, cut, cfg.capacity_multiplier)
     return fns, cells, box_arr
+
+
+def _caller_level() -> int:
+    """``stacklevel`` for a warning raised by the function that calls this one, naming the
+    first frame outside fpsi_jax (the user's line that started the run), however deep in
+    the package the warning is raised."""
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    frame, level = sys._getframe(2), 2
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def _small(cfg: NeighborConfig) -> bool:

@@ -478,3 +478,14 @@ def test_jax_md_lists_load_without_the_rest_of_jax_md():
                          timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().endswith("ok")
+
+
+def test_small_domain_warning_names_the_callers_line():
+    """A domain under 3 cut-offs (jax-md's O(N^2) fallback) is reported once per list
+    configuration, at the first line outside fpsi_jax that asked for the list."""
+    from fpsi_jax.model.config import NeighborConfig
+    cfg = NeighborConfig(r_cut=0.0137, skin=0.001, origin=(0.0, 0.0), box=(0.0371, 0.0373))
+    x = np.random.default_rng(3).uniform(0.0, 0.037, (40, 2)).astype(np.float32)
+    with pytest.warns(UserWarning, match=r"O\(N\^2\)") as record:
+        neighbors.allocate(cfg, x)
+    assert record[0].filename == __file__
