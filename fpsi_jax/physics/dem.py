@@ -33,13 +33,6 @@ import jax.numpy as jnp
 from .pairs import perp, sum_neighbours, take_rows
 
 
-def _safe_norm(d):
-    """|d| with a finite gradient at d = 0 (double-where)."""
-    r2 = jnp.sum(d * d, axis=-1)
-    ok = r2 > 0
-    return jnp.where(ok, jnp.sqrt(jnp.where(ok, r2, 1.0)), 0.0)
-
-
 def reduced_mass(m_a, m_b, fixed_a, fixed_b):
     """m_A m_B/(m_A + m_B); a clamped disc counts as infinitely heavy."""
     both = m_a * m_b / (m_a + m_b)
@@ -68,27 +61,36 @@ def linear_contact(kn, ks, mu, beta_n, beta_s, delta, vn, vs, shear, m, dt):
 def pair_geometry(dx, valid, ra, rb):
     """(n, δ) of pairs A–B from dx = x_B − x_A: the unit normal A → B and the overlap
     δ = R_A + R_B − |dx| (−1 where ``valid`` is False or the centres coincide)."""
-    d = _safe_norm(dx)
-    nrm = dx / jnp.where(d > 0, d, 1.0)[..., None]
-    return nrm, jnp.where(valid & (d > 0), ra + rb - d, -1.0)
+    nx, ny, delta = _pair_geometry_xy(dx[..., 0], dx[..., 1], valid, ra, rb)
+    return jnp.stack([nx, ny], axis=-1), delta
 
 
-def _contact_sum(dp, nrm, delta, ra, rb, dv, omega_a, omega_b, m, shear, dt):
-    """The contact law for every (row, slot) pair with normal ``nrm`` (A → B) and overlap
-    ``delta``, summed over slots onto the row body A.
+def _pair_geometry_xy(dxx, dxy, valid, ra, rb):
+    """:func:`pair_geometry` on the components: (n_x, n_y, δ)."""
+    r2 = dxx * dxx + dxy * dxy
+    ok = r2 > 0
+    d = jnp.where(ok, jnp.sqrt(jnp.where(ok, r2, 1.0)), 0.0)
+    inv = 1.0 / jnp.where(ok, d, 1.0)
+    return dxx * inv, dxy * inv, jnp.where(valid & ok, ra + rb - d, -1.0)
 
-    dv = v_B − v_A (n, K, 2); ra, rb radii (rb = 0 for a wall). Returns
-    (force (n, 2), torque (n,), new history (n, K), overlap (n, K))."""
-    t = perp(nrm)
+
+def _contact_sum(dp, nx, ny, delta, ra, rb, dvx, dvy, omega_a, omega_b, m, shear, dt):
+    """The contact law for every (row, slot) pair with normal (n_x, n_y) (A → B) and
+    overlap ``delta``, summed over slots onto the row body A.
+
+    (dvx, dvy) = v_B − v_A; every pair quantity is an (n, K) array of one component (XLA:CPU
+    emits a sum over a last axis of 2, as a dot product of (n, K, 2) arrays, as a reduction
+    of its own; on components the whole law is one loop). ra, rb radii (rb = 0 for a
+    wall). Returns (force (n, 2), torque (n,), new history (n, K), overlap (n, K))."""
+    tx, ty = -ny, nx
     la, lb = ra - 0.5 * delta, rb - 0.5 * delta
-    vn = jnp.sum(dv * nrm, axis=-1)
-    vs = jnp.sum(dv * t, axis=-1) - omega_b * lb - omega_a * la
+    vn = dvx * nx + dvy * ny
+    vs = dvx * tx + dvy * ty - omega_b * lb - omega_a * la
     fn, fs, hist = linear_contact(dp.kn, dp.ks, dp.mu, dp.beta_n, dp.beta_s, delta, vn, vs,
                                   shear, m, dt)
     # three (n, K) terms summed over the slot axis in one variadic reduction: a sum of the
     # (n, K, 2) force over its middle axis ran 3× slower on XLA:CPU
-    fx, fy, tq = sum_neighbours(fn * nrm[..., 0] + fs * t[..., 0],
-                                fn * nrm[..., 1] + fs * t[..., 1], fs * la)
+    fx, fy, tq = sum_neighbours(fn * nx + fs * tx, fn * ny + fs * ty, fs * la)
     return -jnp.stack([fx, fy], axis=-1), -tq, hist, delta
 
 
@@ -106,10 +108,14 @@ def disc_contacts(dp, x, v, omega, radius, mass, fixed, idx, shear, dt, rows=Non
     j = jnp.where(valid, idx, 0)
     own = functools.partial(take_rows, rows=rows)      # this call's rows of an (n, …) array
     m = reduced_mass(own(mass)[:, None], mass[j], own(fixed)[:, None], fixed[j])
-    nrm, delta = pair_geometry(x[j] - own(x)[:, None, :], valid, own(radius)[:, None],
-                               radius[j])
-    return _contact_sum(dp, nrm, delta, own(radius)[:, None], radius[j],
-                        v[j] - own(v)[:, None, :], own(omega)[:, None], omega[j], m, shear, dt)
+    xo, vo = own(x), own(v)
+
+    def rel(a, ao, c):                  # component c of a_B − a_A, (r, K)
+        return a[:, c][j] - ao[:, c, None]
+    nx, ny, delta = _pair_geometry_xy(rel(x, xo, 0), rel(x, xo, 1), valid,
+                                      own(radius)[:, None], radius[j])
+    return _contact_sum(dp, nx, ny, delta, own(radius)[:, None], radius[j], rel(v, vo, 0),
+                        rel(v, vo, 1), own(omega)[:, None], omega[j], m, shear, dt)
 
 
 def wall_geometry(x, a, b):
@@ -136,20 +142,29 @@ def wall_pair_geometry(x, radius, a, b, side=None):
     which keeps growing (R + depth) once the centre has gone past the line, so a disc
     driven through by an impact its contact spring cannot stop is pushed back out; past
     a depth of 2R the disc counts as on the other side (no contact)."""
-    nrm, delta = pair_geometry(wall_geometry(x, a, b), True, radius[:, None], 0.0)
-    if side is None:
-        return nrm, delta
-    n_in = inward_normals(a, b, side)                                   # (W, 2)
-    ab = b - a
-    rel = x[:, None, :] - a[None]
-    u = jnp.sum(rel * ab[None], axis=-1) / jnp.sum(ab * ab, axis=-1)    # along the segment
-    sd = jnp.sum(rel * n_in[None], axis=-1)                             # signed distance
+    nx, ny, delta = _wall_pair_geometry_xy(x, radius, a, b, side)
+    return jnp.stack([nx, ny], axis=-1), delta
+
+
+def _wall_pair_geometry_xy(x, radius, a, b, side=None):
+    """:func:`wall_pair_geometry` on the components: (n_x, n_y, δ), each (n, W)."""
+    abx, aby = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]                      # (W,)
+    relx, rely = x[:, 0, None] - a[None, :, 0], x[:, 1, None] - a[None, :, 1]
+    u = (relx * abx + rely * aby) / (abx * abx + aby * aby)              # along the segment
+    uc = jnp.clip(u, 0.0, 1.0)
     r = radius[:, None]
+    nx, ny, delta = _pair_geometry_xy(uc * abx - relx, uc * aby - rely, True, r, 0.0)
+    if side is None:
+        return nx, ny, delta
+    inv = side / jnp.sqrt(abx * abx + aby * aby)
+    n_inx, n_iny = -aby * inv, abx * inv                                 # inward_normals
+    sd = relx * n_inx + rely * n_iny                                     # signed distance
     flat = (side[None] != 0) & (u >= 0.0) & (u <= 1.0) & (sd > -2.0 * r)
-    nrm = jnp.where(flat[..., None], -n_in[None], nrm)
+    nx = jnp.where(flat, -n_inx, nx)
+    ny = jnp.where(flat, -n_iny, ny)
     delta = jnp.where(flat, r - sd, jnp.where(side[None] != 0, jnp.where(sd > 0, delta, -1.0),
                                               delta))
-    return nrm, delta
+    return nx, ny, delta
 
 
 def wall_contacts(dp, x, v, omega, radius, mass, a, b, shear, dt, side=None):
@@ -157,9 +172,10 @@ def wall_contacts(dp, x, v, omega, radius, mass, a, b, shear, dt, side=None):
     mass; ``side`` the walls' active sides (None: all two-sided; :func:`wall_pair_geometry`).
     Returns (force (n, 2), torque (n,), new history (n, W), overlap (n, W))."""
     shape = shear.shape
-    nrm, delta = wall_pair_geometry(x, radius, a, b, side)
-    return _contact_sum(dp, nrm, delta, radius[:, None], 0.0,
-                        jnp.broadcast_to(-v[:, None, :], shape + (2,)), omega[:, None], 0.0,
+    nx, ny, delta = _wall_pair_geometry_xy(x, radius, a, b, side)
+    return _contact_sum(dp, nx, ny, delta, radius[:, None], 0.0,
+                        jnp.broadcast_to(-v[:, 0, None], shape),
+                        jnp.broadcast_to(-v[:, 1, None], shape), omega[:, None], 0.0,
                         jnp.broadcast_to(mass[:, None], shape), shear, dt)
 
 
