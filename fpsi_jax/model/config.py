@@ -111,7 +111,7 @@ class Parking:
 #: Physics options that are switches (true/false)
 SWITCHES = ("xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
             "artificial_viscosity", "wall_repulsion", "x64", "fpi", "lubrication",
-            "wall_images")
+            "wall_images", "sort_fluid")
 #: numeric Physics options: (lo, hi, lo_open, hi_open, integer)
 RANGES = {"h_margin": (1.0, 2.0, False, False, False),
           "rho_tolerance": (0.0, 1.0, True, False, False),
@@ -126,6 +126,11 @@ RANGES = {"h_margin": (1.0, 2.0, False, False, False),
 
 #: rows per block of the SPH pair passes and list rebuild on a CPU (Physics.pair_block)
 CPU_PAIR_BLOCK = 1024
+
+#: fluid particles from which a chunk of steps runs on the fluid stored in cell order
+#: (Physics.sort_fluid): below it the particle arrays stay in the CPU's cache whatever
+#: their order (docs/performance.md, *Particle order*)
+SORT_MIN_FLUID = 16 * CPU_PAIR_BLOCK
 
 
 def default_pair_block() -> int:
@@ -234,6 +239,9 @@ class Physics:
                            arrays stay in the CPU's cache. Default :data:`CPU_PAIR_BLOCK`
                            on a CPU, 0 (all rows in one pass) on an accelerator; scenes
                            with fewer than pairs.MIN_BLOCKS blocks of rows use one pass
+      sort_fluid           each chunk of steps runs on the fluid re-stored in cell order
+                           (solver.order; the caller sees the scene's order). Default: on
+                           from :data:`SORT_MIN_FLUID` fluid particles
 
     The domain (health checks) and its open sides:
       domain_lo, domain_hi the rectangle every particle in the computation stays inside
@@ -287,6 +295,7 @@ class Physics:
     parking: Parking | None = None
     rim: tuple | None = None
     pair_block: int = 0
+    sort_fluid: bool = False
     shifting: float = 0.0
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
@@ -294,7 +303,7 @@ class Physics:
                "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section",
                "dem_skin", "fsi", "dem_substeps", "fpi", "voidage", "lubrication",
                "fpi_pressure", "eps_floor", "drag", "pair_block", "density_diffusion",
-               "wall_images", "shifting")
+               "wall_images", "shifting", "sort_fluid")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,
@@ -328,6 +337,8 @@ class Physics:
         dem_skin = float(opts.pop("dem_skin", 0.5))
         if "pair_block" not in opts:
             opts["pair_block"] = default_pair_block()
+        if "sort_fluid" not in opts:
+            opts["sort_fluid"] = scene.fluid is not None and scene.fluid.n >= SORT_MIN_FLUID
         h_margin = float(opts.get("h_margin", 1.05))
         if opts.get("dem_substeps", 1) is None:
             opts.pop("dem_substeps")

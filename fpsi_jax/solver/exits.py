@@ -6,7 +6,9 @@ the walls (beside the boundary particles, above the highest of them), is *parked
 keeps its slot in every array (the compiled shapes never change) but is moved to its own
 spot on the parking lattice above the domain (:class:`~fpsi_jax.model.config.Parking`),
 farther than any list radius from everything, so it drops out of every neighbour list and
-pair sum; its velocity and accelerations are zeroed and kept so. ``t_out`` records when it
+pair sum; its velocity and accelerations are zeroed and kept so. A fluid particle takes the
+next free spot in the order the particles leave (not its storage slot: the fluid may be
+re-stored in cell order, :mod:`fpsi_jax.solver.order`), a disc its own. ``t_out`` records when it
 left (−1: still in); its mass is the scene's, so the mass that left is Σ m over
 ``t_out ≥ 0``. A disc that leaves becomes kinematic (``fixed``) and its intact bonds break
 with mode 3. Crossing a closed side stays an error (solver.health). Scenes without an open
@@ -38,7 +40,11 @@ def crossed_open_side(phys: Physics, x):
 
 def park_positions(parking: Parking, first_slot: int, n: int, dtype):
     """(n, 2) parking spots of slots first_slot … first_slot + n − 1."""
-    k = jnp.arange(n) + first_slot
+    return spots(parking, jnp.arange(n) + first_slot, dtype)
+
+
+def spots(parking: Parking, k, dtype):
+    """(len(k), 2) parking spots of the slots ``k``."""
     s = parking.spacing
     col = (k % parking.columns).astype(dtype)
     row = (k // parking.columns).astype(dtype)
@@ -54,11 +60,15 @@ def leave(phys: Physics, x, t_out, t):
 
 
 def park_fluid(phys: Physics, fluid, t):
-    """The fluid with the particles that crossed an open side parked (slots 0 … n − 1)."""
+    """The fluid with the particles that crossed an open side parked: the k-th particle to
+    leave takes slot k − 1 (slots 0 … n − 1) and stays there (its velocity and
+    acceleration zeroed every step, so the drift never moves it)."""
     t_out, out = leave(phys, fluid.x, fluid.t_out, t)
-    spot = park_positions(phys.parking, 0, fluid.x.shape[0], fluid.x.dtype)
+    new = out & (fluid.t_out < 0)
+    slot = jnp.sum(fluid.t_out >= 0) + jnp.cumsum(new) - 1
+    spot = spots(phys.parking, slot, fluid.x.dtype)
     o2 = out[:, None]
-    return fluid.replace(x=jnp.where(o2, spot, fluid.x), v=jnp.where(o2, 0.0, fluid.v),
+    return fluid.replace(x=jnp.where(new[:, None], spot, fluid.x), v=jnp.where(o2, 0.0, fluid.v),
                          acc=jnp.where(o2, 0.0, fluid.acc), xsph=jnp.where(o2, 0.0, fluid.xsph),
                          t_out=t_out)
 

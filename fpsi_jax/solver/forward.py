@@ -14,7 +14,7 @@ import jax.numpy as jnp
 from ..model.config import Physics
 from ..model.params import Params
 from ..model.state import State
-from . import stages
+from . import order, stages
 
 
 def step(phys: Physics, state: State, params: Params) -> State:
@@ -46,14 +46,19 @@ def rollout(phys: Physics, state: State, params: Params, n_steps: int,
     """Run ``n_steps`` steps under ``jax.lax.scan``; returns (final state, observations).
 
     ``observe(state)`` returns a small pytree recorded after every step (e.g. a front
-    position); with ``observe=None`` nothing is recorded.
+    position); with ``observe=None`` nothing is recorded. With ``phys.sort_fluid`` the
+    steps run on the fluid re-stored in cell order (:mod:`~fpsi_jax.solver.order`); the
+    final state and what ``observe`` sees keep the fluid in ``state``'s order.
     """
 
-    def body(s, _):
-        s = step(phys, s, params)
-        return s, (None if observe is None else observe(s))
+    def run(state, observe):
+        def body(s, _):
+            s = step(phys, s, params)
+            return s, (None if observe is None else observe(s))
 
-    return jax.lax.scan(body, state, None, length=n_steps)
+        return jax.lax.scan(body, state, None, length=n_steps)
+
+    return order.sorted_chunk(phys, state, run, observe)
 
 
 def advance(phys: Physics, state: State, params: Params, n, n_max: int,
@@ -62,16 +67,21 @@ def advance(phys: Physics, state: State, params: Params, n, n_max: int,
     every chunk length up to ``n_max``, so the host driver's last, shorter chunk does not
     compile a second program (2–5 s for a coupled scene). Observations fill the first ``n``
     rows of an ``n_max``-row buffer (the rest stay zero). A while loop underneath: not
-    reverse-differentiable, use :func:`rollout` for gradients."""
+    reverse-differentiable, use :func:`rollout` for gradients. The fluid's storage order as
+    in :func:`rollout`."""
     buf = None if observe is None else jax.tree_util.tree_map(
         lambda a: jnp.zeros((n_max,) + a.shape, a.dtype), jax.eval_shape(observe, state))
 
-    def body(i, carry):
-        s, b = carry
-        s = step(phys, s, params)
-        if observe is not None:
-            b = jax.tree_util.tree_map(
-                lambda bb, o: jax.lax.dynamic_update_index_in_dim(bb, o, i, 0), b, observe(s))
-        return s, b
+    def run(state, observe):
+        def body(i, carry):
+            s, b = carry
+            s = step(phys, s, params)
+            if observe is not None:
+                b = jax.tree_util.tree_map(
+                    lambda bb, o: jax.lax.dynamic_update_index_in_dim(bb, o, i, 0), b,
+                    observe(s))
+            return s, b
 
-    return jax.lax.fori_loop(0, n, body, (state, buf))
+        return jax.lax.fori_loop(0, n, body, (state, buf))
+
+    return order.sorted_chunk(phys, state, run, observe)

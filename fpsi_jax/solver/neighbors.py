@@ -358,14 +358,27 @@ def cell_list(cfg: NeighborConfig, xs, cell_capacity: int) -> partition.CellList
     return _cell_list(cfg, xs, cell_capacity)[0]
 
 
+def _grid(cfg: NeighborConfig, dim: int):
+    """(cell size, cells per side, cell count) of the list's grid, as jax-md sizes it."""
+    box = np.asarray(cfg.box, np.float64).astype(np.float32).reshape(1, -1)  # as _family
+    _, cell_size, per_side, count = partition._cell_dimensions(dim, box, cfg.list_radius)
+    return cell_size, per_side, count
+
+
+def cell_hash(cfg: NeighborConfig, xs):
+    """(cells (N, dim), hash (N,)) of positions ``xs`` in the list's frame: the cell each
+    lies in and its index in the table, rows of cells along x (jax-md's hash)."""
+    cell_size, per_side, _ = _grid(cfg, xs.shape[1])
+    hash_mult = partition._compute_hash_constants(xs.shape[1], per_side)
+    cells = jnp.mod(jnp.array(xs / cell_size, dtype=jnp.int32), per_side)
+    return cells, jnp.sum(cells * hash_mult, axis=1)
+
+
 def _cell_list(cfg: NeighborConfig, xs, cell_capacity: int):
     """:func:`cell_list` and the particle count of its fullest cell."""
     n, dim = xs.shape
-    box = np.asarray(cfg.box, np.float64).astype(np.float32).reshape(1, -1)  # as _family
-    _, cell_size, per_side, count = partition._cell_dimensions(dim, box, cfg.list_radius)
-    hash_mult = partition._compute_hash_constants(dim, per_side)
-    cells = jnp.mod(jnp.array(xs / cell_size, dtype=jnp.int32), per_side)
-    hashes = jnp.sum(cells * hash_mult, axis=1)
+    cell_size, per_side, count = _grid(cfg, dim)
+    cells, hashes = cell_hash(cfg, xs)
     ids = jnp.arange(n, dtype=jnp.int32)
     if 0 < cfg.n_columns < n:        # the rest sort last, into a cell past the table
         hashes = jnp.where(ids < cfg.n_columns, hashes, count)
