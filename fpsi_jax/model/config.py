@@ -111,7 +111,7 @@ class Parking:
 #: Physics options that are switches (true/false)
 SWITCHES = ("xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
             "artificial_viscosity", "wall_repulsion", "x64", "fpi", "lubrication",
-            "wall_images", "sort_fluid")
+            "wall_images", "sort_fluid", "transport_continuity")
 #: numeric Physics options: (lo, hi, lo_open, hi_open, integer)
 RANGES = {"h_margin": (1.0, 2.0, False, False, False),
           "rho_tolerance": (0.0, 1.0, True, False, False),
@@ -179,6 +179,8 @@ class Physics:
     Phases present (n_fluid, n_boundary) and the switches of the SPH model:
       kernel               'wendland' (K28) or 'cubic'
       xsph                 XSPH position correction (K39)
+      transport_continuity continuity with the velocity the particles drift with, v + δv_XSPH
+                           (off: with v, as K32; see docs/physics.md, *Particle shifting*)
       shifting             particle shifting coefficient A, δr = −A h² ∇C each step
                            (sph.shifting_velocity; 0: off, the default; not in the seeds)
       anticlump            anti-clump term R_ij (W45, K38) on fluid–fluid pairs
@@ -260,6 +262,7 @@ class Physics:
     neighbors: NeighborConfig | None
     kernel: KernelKind = KernelKind.WENDLAND
     xsph: bool = True
+    transport_continuity: bool = False
     anticlump: bool = True
     anticlump_boundary: bool = False
     variable_h: bool = True
@@ -303,7 +306,7 @@ class Physics:
                "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section",
                "dem_skin", "fsi", "dem_substeps", "fpi", "voidage", "lubrication",
                "fpi_pressure", "eps_floor", "drag", "pair_block", "density_diffusion",
-               "wall_images", "shifting", "sort_fluid")
+               "wall_images", "shifting", "sort_fluid", "transport_continuity")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,

@@ -409,10 +409,22 @@ def grain_images(phys: Physics, state: State, x_p):
     return fpi.wall_images(x_p, w.a, w.b, w.side)
 
 
+def transported(phys: Physics, fam: SphFamily, fluid) -> SphFamily:
+    """The family with the fluid's velocity v + δv_XSPH, the velocity its particles drift
+    with (:func:`fluid_kick_drift`): continuity then gives the rate of the density the
+    particles' motion makes, Σ_j m_j (ṽ_i − ṽ_j)·∇_iW_ij with ṽ = v + δv (the rate of the
+    summation density of particles moving with ṽ). With ``v`` alone the XSPH part of the
+    motion compresses or spreads the fluid without the density seeing it."""
+    v = jnp.concatenate([fluid.v + fluid.xsph, fam.v[phys.n_fluid:]])
+    return fam._replace(v=v)
+
+
 def new_level(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c_all,
               dt) -> NewLevel:
     """Continuity (K32) with δ-SPH, ρ' = ρ + dt Dρ/Dt, h' by K37, with grains the voidage at
     the new positions (W42: the conserved density is ερ), and P' from the EOS (W46, K35).
+    ``phys.transport_continuity``: continuity with the velocity the particles drift with
+    (:func:`transported`).
 
     With the 'shared' pressure the intrinsic ρ is advanced by the mixture's continuity
     (:func:`fpi.mixture_flux`, :func:`mixture_density_rate`), the discrete adjoint of the
@@ -420,6 +432,8 @@ def new_level(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c
     sp, f, fp = params.sph, state.fluid, state.fpi
     if fp is not None and phys.fpi_pressure is FpiPressure.SHARED:
         return _mixture_level(phys, params, state, fam, dt)
+    if phys.transport_continuity:
+        fam = transported(phys, fam, f)
     rho_c = f.rho if fp is None else fp.eps * f.rho
     if fp is None:
         drho = pair_pass(phys, fam, rho_c_all,

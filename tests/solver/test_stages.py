@@ -533,3 +533,33 @@ def test_shared_pressure_does_the_work_the_mixture_continuity_stores():
     stored_other = float(np.sum(m * pres / rho ** 2 * (np.asarray(new.rho) - rho) / dt))
     assert abs(fluid_power + grain_power + stored_other) > 0.01 * scale
 
+
+
+@x64
+def test_transport_continuity_sees_the_xsph_motion():
+    """``transport_continuity``: continuity with the velocity the particles drift with,
+    ṽ = v + δv_XSPH. Hand value: still fluid (v = 0) whose XSPH part is a uniform
+    compression δv = −a (x − c) gives, away from walls and surface, Dρ/Dt = −ρ∇·ṽ = 2aρ;
+    continuity with v alone gives 0. And the option is exactly continuity with v + δv."""
+    scene = cases.build("hydrostatic_tank", dx=0.01, depth=0.2, width=0.2, t_end=0.01)
+    phys, p, st = init_x64(scene, delta_sph=False, x64=True)
+    x = st.fluid.x
+    c = jnp.mean(x, axis=0)
+    a = 0.3
+    f = st.fluid.replace(v=jnp.zeros_like(x), xsph=-a * (x - c))
+    st = st.replace(fluid=f)
+    rho_c = stages._all(st, f.rho, "rho")
+    on = dataclasses.replace(phys, transport_continuity=True)
+
+    def rate(ph, s):
+        return np.asarray(stages.new_level(ph, p, s, stages.sph_family(ph, s), rho_c,
+                                           1.0).rho - s.fluid.rho)
+
+    xn = np.asarray(x)
+    inner = ((xn[:, 0] > 0.05) & (xn[:, 0] < 0.15) & (xn[:, 1] > 0.05) & (xn[:, 1] < 0.15))
+    assert inner.sum() >= 16
+    got = rate(on, st)[inner] / np.asarray(f.rho)[inner]
+    np.testing.assert_allclose(got, 2 * a, rtol=0.02)
+    np.testing.assert_allclose(rate(phys, st), 0.0, atol=1e-12)
+    moved = st.replace(fluid=f.replace(v=f.v + f.xsph, xsph=jnp.zeros_like(x)))
+    np.testing.assert_allclose(rate(on, st), rate(phys, moved), rtol=1e-12, atol=1e-12)
