@@ -6,13 +6,13 @@ the walls (beside the boundary particles, above the highest of them), is *parked
 keeps its slot in every array (the compiled shapes never change) but is moved to its own
 spot on the parking lattice above the domain (:class:`~fpsi_jax.model.config.Parking`),
 farther than any list radius from everything, so it drops out of every neighbour list and
-pair sum; its velocity and accelerations are zeroed and kept so. A fluid particle takes the
-next free spot in the order the particles leave (not its storage slot: the fluid may be
-re-stored in cell order, :mod:`fpsi_jax.solver.order`), a disc its own. ``t_out`` records when it
-left (−1: still in); its mass is the scene's, so the mass that left is Σ m over
-``t_out ≥ 0``. A disc that leaves becomes kinematic (``fixed``) and its intact bonds break
-with mode 3. Crossing a closed side stays an error (solver.health). Scenes without an open
-side trace none of this.
+pair sum; its velocity and accelerations are zeroed and kept so. A fluid particle takes
+the next free spot in the order the particles leave (not its storage slot: the fluid may
+be re-stored in cell order, :mod:`fpsi_jax.solver.order`), a disc its own. ``t_out``
+records when it left (−1: still in); its mass is the scene's, so the mass that left is
+Σ m over ``t_out ≥ 0``. A disc that leaves becomes kinematic (``fixed``) and its intact
+bonds break with mode 3. Crossing a closed side stays an error (solver.health). Scenes
+without an open side trace none of this.
 """
 from __future__ import annotations
 
@@ -68,9 +68,9 @@ def park_fluid(phys: Physics, fluid, t):
     slot = jnp.sum(fluid.t_out >= 0) + jnp.cumsum(new) - 1
     spot = spots(phys.parking, slot, fluid.x.dtype)
     o2 = out[:, None]
-    return fluid.replace(x=jnp.where(new[:, None], spot, fluid.x), v=jnp.where(o2, 0.0, fluid.v),
-                         acc=jnp.where(o2, 0.0, fluid.acc), xsph=jnp.where(o2, 0.0, fluid.xsph),
-                         t_out=t_out)
+    return fluid.replace(x=jnp.where(new[:, None], spot, fluid.x),
+                         v=jnp.where(o2, 0.0, fluid.v), acc=jnp.where(o2, 0.0, fluid.acc),
+                         xsph=jnp.where(o2, 0.0, fluid.xsph), t_out=t_out)
 
 
 def park_discs(phys: Physics, solid, bonds, t):

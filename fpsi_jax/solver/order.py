@@ -2,7 +2,7 @@
 
 The SPH pair passes gather each neighbour's fields by index. While particles that are
 close in space are close in memory these gathers read few cache lines; a flow that mixes
-its particles (a dam break after the impact, a jet) scatters them, and once the particle
+its particles (a jet breaking up, a long sloshing run) scatters them, and once the particle
 arrays outgrow the CPU's cache every gather goes to memory: the dam break with its fluid
 stored in a random order ran 43 % slower a step at 90k particles and 55 % at 344k than in
 the builders' row-by-row order (docs/performance.md, *Particle order*). DualSPHysics and
