@@ -12,9 +12,9 @@ the GPU SPH codes sort their particles by cell for the same reason.
 (:func:`cell_order`) and stores the result back in the caller's order, so everything
 outside the chunk (output frames, probes, a user's particle indices, checkpoints) sees the
 particles where the scene put them. Re-storing is a relabelling: the SPH list keeps the
-same pairs in the same slots (:func:`relabel`), so a chunk run sorted computes the same
-sums in the same order until its first list rebuild, and equal to float round-off after
-it. Only the fluid moves in memory; boundary, structure and grain rows keep their places
+same pairs in the same slots (:func:`relabel`), so a chunk run sorted sums the same pairs
+in the same order until its first list rebuild (equal to the last bit or two, where XLA
+vectorises a row differently) and equal to float round-off after it. Only the fluid moves in memory; boundary, structure and grain rows keep their places
 (the boundary never moves, and the builders lay it out in lattice order).
 """
 from __future__ import annotations
