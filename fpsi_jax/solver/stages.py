@@ -479,7 +479,8 @@ def mixture_voidage(phys: Physics, state: State, fam: SphFamily):
         eps_raw = fpi.fluid_voidage(rows.ws, fam.vol_p, rows.idx, rows.valid, phys.n_fluid,
                                     phys.voidage)
         eps = jnp.maximum(eps_raw, phys.eps_floor)
-        flux = fpi.mixture_flux(rows, eps, f.v, fam.v_p, fam.vol_p, phys.n_fluid)
+        u = f.v + f.xsph if phys.transport_continuity else f.v
+        flux = fpi.mixture_flux(rows, eps, u, fam.v_p, fam.vol_p, phys.n_fluid)
     return rows, eps_raw, eps, flux
 
 

@@ -503,7 +503,8 @@ def test_shared_pressure_does_the_work_the_mixture_continuity_stores():
     everything else switched off, the power of the pressure forces on the fluid and on the
     grains plus the rate of the fluid's internal energy Σ m_i (P_i/ρ_i²) Dρ_i/Dt is zero to
     round-off (energy is conserved by the semi-discrete coupling), whatever the voidage and
-    the velocities. Converting ερ with ε of the new positions (the other modes) breaks this
+    the velocities; the fluid's power at the velocity continuity moves it with (v + δv_XSPH
+    by default, ``transport_continuity``). Converting ερ with ε of the new positions (the other modes) breaks this
     by the work of the voidage gradient: 1.8 % of the terms' scale."""
     scene = _pore_scene()
     phys, p, st = init_x64(scene)
@@ -518,7 +519,9 @@ def test_shared_pressure_does_the_work_the_mixture_continuity_stores():
     m, rho, pres = np.asarray(f.mass), np.asarray(lvl.rho), np.asarray(lvl.p)
     lift = np.asarray(fpi.cell_share_on_grains(lvl.rows, share * f.mass[:, None], fam.vol_p,
                                                phys.n_fluid))
-    fluid_power = float(np.sum(m[:, None] * np.asarray(moved.fluid.acc) * np.asarray(f.v)))
+    u = f.v + f.xsph if phys.transport_continuity else f.v       # what continuity moves
+    assert float(jnp.max(jnp.abs(f.xsph))) > 0.0
+    fluid_power = float(np.sum(m[:, None] * np.asarray(moved.fluid.acc) * np.asarray(u)))
     grain_power = float(np.sum(lift * np.asarray(fam.v_p)))
     stored = float(np.sum(m * pres / rho ** 2 * drho))
     scale = float(np.sum(np.abs(m * pres / rho ** 2 * drho)))
@@ -536,6 +539,29 @@ def test_shared_pressure_does_the_work_the_mixture_continuity_stores():
 
 
 @x64
+def test_transport_continuity_moves_the_mixture_flux_with_the_drift():
+    """With the 'shared' pressure the option puts the fluid's drift velocity v + δv_XSPH
+    into the mixture's flux J = ε ũ + (1 − ε) v̄ (the pore fluid's particles move with ũ);
+    without it J takes v. Both are the flux of fpi.mixture_flux at that velocity."""
+    scene = _pore_scene()
+    phys, p, st = init_x64(scene)
+    f = st.fluid
+    rng = np.random.default_rng(0)
+    xs = jnp.asarray(rng.normal(0.0, 0.01, f.v.shape))
+    st = st.replace(fluid=f.replace(xsph=xs))
+    fam = stages.sph_family(phys, st)
+    on = dataclasses.replace(phys, transport_continuity=True)
+    off = dataclasses.replace(phys, transport_continuity=False)
+    rows, _, eps, j_on = stages.mixture_voidage(on, st, fam)
+    j_off = stages.mixture_voidage(off, st, fam)[3]
+    want = fpi.mixture_flux(rows, eps, f.v + xs, fam.v_p, fam.vol_p, phys.n_fluid)
+    np.testing.assert_allclose(np.asarray(j_on), np.asarray(want), rtol=1e-12, atol=1e-15)
+    e = np.asarray(eps)[:, None]
+    np.testing.assert_allclose(np.asarray(j_on - j_off), e * np.asarray(xs), rtol=1e-9,
+                               atol=1e-15)
+
+
+@x64
 def test_transport_continuity_sees_the_xsph_motion():
     """``transport_continuity``: continuity with the velocity the particles drift with,
     ṽ = v + δv_XSPH. Hand value: still fluid (v = 0) whose XSPH part is a uniform
@@ -550,6 +576,7 @@ def test_transport_continuity_sees_the_xsph_motion():
     st = st.replace(fluid=f)
     rho_c = stages._all(st, f.rho, "rho")
     on = dataclasses.replace(phys, transport_continuity=True)
+    off = dataclasses.replace(phys, transport_continuity=False)
 
     def rate(ph, s):
         return np.asarray(stages.new_level(ph, p, s, stages.sph_family(ph, s), rho_c,
@@ -560,6 +587,6 @@ def test_transport_continuity_sees_the_xsph_motion():
     assert inner.sum() >= 16
     got = rate(on, st)[inner] / np.asarray(f.rho)[inner]
     np.testing.assert_allclose(got, 2 * a, rtol=0.02)
-    np.testing.assert_allclose(rate(phys, st), 0.0, atol=1e-12)
+    np.testing.assert_allclose(rate(off, st), 0.0, atol=1e-12)
     moved = st.replace(fluid=f.replace(v=f.v + f.xsph, xsph=jnp.zeros_like(x)))
-    np.testing.assert_allclose(rate(on, st), rate(phys, moved), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(rate(on, st), rate(off, moved), rtol=1e-12, atol=1e-12)
