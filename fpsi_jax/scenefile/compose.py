@@ -466,6 +466,7 @@ def compose(spec: dict, path: str) -> SceneFile:
     if fluid is not None:
         options.update(boundary_pressure=ph["boundary_pressure"], kernel=ph["kernel"],
                        xsph=ph["xsph"], shifting=ph["shifting"], variable_h=ph["variable_h"],
+                       transport_continuity=ph["transport_continuity"],
                        rho_tolerance=ph["rho_tolerance"],
                        delta_sph=(sp.delta > 0) if ph["delta_sph"] is None else ph["delta_sph"],
                        density_diffusion=ph["density_diffusion"],

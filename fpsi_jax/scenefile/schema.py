@@ -2,7 +2,8 @@
 
 This table is the single source of what a file can say: :mod:`.reader` checks a file
 against it (unknown keys, types, ranges) and ``docs/scene-file.md`` is generated from it
-(``python -m fpsi_jax.scenefile.schema > docs/scene-file.md``).
+(``python -c "from fpsi_jax.scenefile.schema import markdown; print(markdown())" >
+docs/scene-file.md``).
 
 Types: ``float`` (a number in the key's SI unit, or a string with a unit, ``"3.5 mm"``,
 ``"10 MPa"``), ``int``, ``bool``, ``str``, ``point`` [x, y], ``box`` [x0, y0, x1, y1]
@@ -257,6 +258,8 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
       Key("dem_substeps", "int", "", None, "DEM sub-steps per SPH step (default: the fewest "
           "the DEM bound needs)", lo=1),
       Key("xsph", "bool", "", True, "XSPH velocity smoothing"),
+      Key("transport_continuity", "bool", "", True, "continuity with the velocity the "
+          "particles move with, v + δv_XSPH (false: with v, as the seeds' K32)"),
       Key("shifting", "float", "", 0.0, "particle shifting coefficient A: each step "
           "δr = −A h² ∇C moves particles from crowded to sparse places, off at a free "
           "surface (0: off)", lo=0.0, hi=0.5),
