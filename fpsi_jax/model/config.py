@@ -180,7 +180,8 @@ class Physics:
       kernel               'wendland' (K28) or 'cubic'
       xsph                 XSPH position correction (K39)
       transport_continuity continuity with the velocity the particles drift with, v + δv_XSPH
-                           (default; off: with v, as K32; docs/physics.md, *Particle shifting*)
+                           (default; off: with v, as K32; docs/physics.md, *Continuity at the
+                           velocity the particles move with*)
       shifting             particle shifting coefficient A, δr = −A h² ∇C each step
                            (sph.shifting_velocity; 0: off, the default; not in the seeds)
       anticlump            anti-clump term R_ij (W45, K38) on fluid–fluid pairs
