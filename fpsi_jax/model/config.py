@@ -20,6 +20,9 @@ from .scene import Scene
 
 # the kernels' support radius in units of h (both kernels of physics/kernels.py vanish at q = 2)
 KERNEL_SUPPORT = 2.0
+#: the SPH cells' allocation slack in scenes with grains in the fluid
+#: (NeighborConfig.cell_multiplier)
+GRAIN_CELL_MULTIPLIER = 2.0
 
 
 @dataclass(frozen=True)
@@ -31,6 +34,12 @@ class NeighborConfig:
             particles' displacements since the last build no longer fit in a circle of
             radius skin/2 (neighbors.moved_past_half_skin)
     capacity_multiplier, extra_capacity   jax-md allocation slack; grown on overflow
+    cell_multiplier   the cells' allocation slack (0: capacity_multiplier). Scenes with
+                  grains in the fluid take 2: pore fluid packs as the bed moves (the
+                  two-phase dam break's fullest cell, on the floor under the bed, went from
+                  22 to 35 particles by 0.12 s), and regrowing the cells costs a recompile
+                  and a redone chunk, where a wider cell costs only the rebuild's candidate
+                  pass (docs/performance.md, *Coupled scenes*)
     min_neighbors, min_cell_capacity   room per row and per cell at least (0: what the
                   allocation finds × the multiplier); set when a list overflowed
                   (``neighbors.grow``)
@@ -62,6 +71,7 @@ class NeighborConfig:
     origin: tuple[float, float]
     box: tuple[float, float]
     capacity_multiplier: float = 1.25
+    cell_multiplier: float = 0.0
     extra_capacity: int = 0
     min_neighbors: int = 0
     min_cell_capacity: int = 0
@@ -381,6 +391,7 @@ class Physics:
             n_walls = n_structure + (scene.boundary.n if scene.boundary is not None else 0)
             nb = NeighborConfig(r_cut=KERNEL_SUPPORT * h_max, skin=skin_factor * h_max / h_margin,
                                 origin=lo, box=box, capacity_multiplier=float(cap),
+                                cell_multiplier=GRAIN_CELL_MULTIPLIER if n_grain else 0.0,
                                 row_block=int(opts["pair_block"]), n_columns=n_columns,
                                 fluid_only_rows=(n_f, n_f + n_walls, n_f) if n_walls else ())
         if scene.solid is not None:

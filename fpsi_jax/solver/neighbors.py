@@ -155,7 +155,8 @@ def allocate(cfg: NeighborConfig, x) -> partition.NeighborList:
         return fns.allocate(xs, extra_capacity=cfg.extra_capacity)
     n = xs.shape[0]
     # jax-md's cell capacity: the fullest cell × multiplier, + extra
-    cell_cap = max(int(int(_fullest_cell(_key(cfg), xs)) * cfg.capacity_multiplier)
+    cell_cap = max(int(int(_fullest_cell(_key(cfg), xs))
+                       * (cfg.cell_multiplier or cfg.capacity_multiplier))
                    + cfg.extra_capacity, cfg.min_cell_capacity)
     idx, occupancy, wall, cell_over = _allocation_rows(_key(cfg), cells, xs, cell_cap)
     occupancy, wall = int(occupancy), int(wall)

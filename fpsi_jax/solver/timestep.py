@@ -29,7 +29,7 @@ def _grains(scene: Scene, phys: Physics):
 
 # Step coefficients. physics.md quotes 0.25 h/(c0+|v|) and 0.2 √(m/k); the sweeps of
 # experiments/stability.py found those 5–6.5× below the step where the runs blow up, so the
-# fluid-only and DEM-only coefficients below keep a measured margin of 1.8–1.9 instead. A
+# fluid-only and DEM-only coefficients below keep a measured margin of 1.7–1.9 instead. A
 # structure the fluid moves (option fsi, Scene.fsi_coupled) keeps physics.md's 0.25 and
 # 0.2: the step is sized for the accuracy of the force-holding coupling, not for
 # stability (docs/design.md, "Time-step coefficients", has the figures).

@@ -25,6 +25,27 @@ def test_grow_adds_room():
     assert not neighbors.overflowed(nb)
 
 
+def test_cells_take_their_own_multiplier_and_grain_scenes_double_them():
+    """NeighborConfig.cell_multiplier sizes the cells (the fullest × it), the rows keep
+    capacity_multiplier; a scene with grains in the fluid gets 2 (pore fluid packs), a
+    fluid-only scene 0 (the rows' multiplier)."""
+    import dataclasses
+
+    import jax.numpy as jnp
+    cfg, xs, nbrs = _dam_break_list(every_column=False)
+    fullest = int(neighbors._fullest_cell(cfg, xs))
+    assert cfg.cell_multiplier == 0.0
+    assert nbrs.cell_list_capacity == int(fullest * cfg.capacity_multiplier)
+    x = jnp.asarray(xs) + jnp.asarray(cfg.origin, jnp.float32)
+    wide = neighbors.allocate(dataclasses.replace(cfg, cell_multiplier=2.0), x)
+    assert wide.cell_list_capacity == 2 * fullest
+    assert neighbors.capacity(wide) == neighbors.capacity(nbrs)
+    np.testing.assert_array_equal(np.sort(np.asarray(wide.idx), axis=1),
+                                  np.sort(np.asarray(nbrs.idx), axis=1))
+    grains = Physics.for_scene(cases.build("grain_bed")).neighbors
+    assert grains.cell_multiplier == 2.0
+
+
 def _dam_break_list(every_column=True):
     """The dam break's SPH list; ``every_column``: with the boundary rows listing every
     particle, as jax-md does (NeighborConfig.fluid_only_rows off)."""
