@@ -38,8 +38,9 @@ class NeighborConfig:
                   grains in the fluid take 2: pore fluid packs as the bed moves (the
                   two-phase dam break's fullest cell, on the floor under the bed, went from
                   22 to 35 particles by 0.12 s), and regrowing the cells costs a recompile
-                  and a redone chunk, where a wider cell costs only the rebuild's candidate
-                  pass (docs/performance.md, *Coupled scenes*)
+                  and a redone chunk (8.7 s and ~5 s there), where wider cells cost the
+                  rebuild's candidate pass (+16 % a step in that flow's surge; over its
+                  0.2 s, 46 → 33 s: docs/performance.md, *Coupled scenes*)
     min_neighbors, min_cell_capacity   room per row and per cell at least (0: what the
                   allocation finds × the multiplier); set when a list overflowed
                   (``neighbors.grow``)
