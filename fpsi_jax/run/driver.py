@@ -94,7 +94,10 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
     With fluid and discs together the step is multi-rate: ``dt`` is the SPH step (default:
     the SPH bound) and the discs take ``dem_substeps`` sub-steps of dt/n inside it, n the
     fewest that keep dt/n under the DEM bound unless the caller fixes it (``dem_substeps=1``
-    is the single-rate run, whose default dt is then the smaller of the two bounds)."""
+    is the single-rate run, whose default dt is then the smaller of the two bounds).
+
+    Sets JAX's process-wide x64 flag to the run's precision (``Physics.x64``): on for a
+    float64 run, off for a float32 one."""
     scene.validate()
     limits.check(scene.n_particles, f"scene {scene.name!r}")
     phys = Physics.for_scene(scene, **physics_overrides)
@@ -119,8 +122,10 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
         raise ParameterError(f"dt = {dt} out of range; allowed (0, inf) with unsafe_dt")
     phys = dataclasses.replace(phys, dem_substeps=n_sub)
     params = params.replace(dt=float(dt)).validate()
-    if phys.x64:
-        jax.config.update("jax_enable_x64", True)
+    # JAX's x64 flag is process-wide: set it to this run's precision both ways, so a float32
+    # run after a float64 one (fpsi validate runs every case in one process) is not traced
+    # with x64 on, where weakly typed constants promote parts of the step to float64
+    jax.config.update("jax_enable_x64", bool(phys.x64))
     return init.fit_wall_width(scene, phys), params
 
 

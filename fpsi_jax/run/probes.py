@@ -77,7 +77,7 @@ def _indices(idx, n, what) -> np.ndarray:
         raise ParameterError(f"{what}: the probe selects no particle")
     if idx.min() < 0 or idx.max() >= n:
         raise ParameterError(f"{what}: index out of range; allowed [0, {n - 1}]")
-    return idx
+    return idx.astype(np.int32)      # int32 whatever JAX's x64 flag is when the probe is made
 
 
 def _need(scene, phase, name):
@@ -112,7 +112,7 @@ def force(name: str, scene, idx, about=None) -> Probe:
                              "disc")
     c = (np.asarray(scene.solid.x, float)[ii].mean(axis=0) if about is None
          else np.asarray(about, float))
-    rr = jnp.asarray(rows)
+    rr = jnp.asarray(rows, jnp.int32)
 
     def fn(s):
         f = s.fsi.force[rr]

@@ -197,3 +197,23 @@ def test_a_second_run_of_the_same_scene_compiles_nothing(tiny_tank):
     assert res.n_steps > 0
     assert _advance._cache_size() == n_adv
     assert init.initial_rates._cache_size() == n_init
+
+
+def test_setup_sets_jax_x64_to_the_runs_precision_both_ways():
+    """JAX's x64 flag is process-wide: a float32 run set up after a float64 one must not be
+    traced with it on (weakly typed constants would promote parts of its step to float64,
+    and fpsi validate, which runs every case in one process, gave other figures for the
+    cases after the first float64 one)."""
+    prev = jax.config.jax_enable_x64
+    try:
+        sc = cases.build("dry_dam_break")
+        setup(sc, x64=True)
+        assert jax.config.jax_enable_x64
+        phys, p = setup(sc)
+        assert not phys.x64
+        assert not jax.config.jax_enable_x64
+        res = simulate(sc, t_end=20 * float(p.dt), progress=False)
+        assert res.state.solid.x.dtype == jnp.float32
+        assert jnp.asarray(1.0).dtype == jnp.float32
+    finally:
+        jax.config.update("jax_enable_x64", prev)
