@@ -409,13 +409,20 @@ def grain_images(phys: Physics, state: State, x_p):
     return fpi.wall_images(x_p, w.a, w.b, w.side)
 
 
+def continuity_velocity(phys: Physics, fluid):
+    """The fluid velocity continuity moves the density with: v + δv_XSPH, the velocity the
+    particles drift with (:func:`fluid_kick_drift`), with ``phys.transport_continuity``;
+    else v (K32)."""
+    return fluid.v + fluid.xsph if phys.transport_continuity else fluid.v
+
+
 def transported(phys: Physics, fam: SphFamily, fluid) -> SphFamily:
     """The family with the fluid's velocity v + δv_XSPH, the velocity its particles drift
     with (:func:`fluid_kick_drift`): continuity then gives the rate of the density the
     particles' motion makes, Σ_j m_j (ṽ_i − ṽ_j)·∇_iW_ij with ṽ = v + δv (the rate of the
     summation density of particles moving with ṽ). With ``v`` alone the XSPH part of the
     motion compresses or spreads the fluid without the density seeing it."""
-    v = jnp.concatenate([fluid.v + fluid.xsph, fam.v[phys.n_fluid:]])
+    v = jnp.concatenate([continuity_velocity(phys, fluid), fam.v[phys.n_fluid:]])
     return fam._replace(v=v)
 
 
@@ -479,8 +486,8 @@ def mixture_voidage(phys: Physics, state: State, fam: SphFamily):
         eps_raw = fpi.fluid_voidage(rows.ws, fam.vol_p, rows.idx, rows.valid, phys.n_fluid,
                                     phys.voidage)
         eps = jnp.maximum(eps_raw, phys.eps_floor)
-        u = f.v + f.xsph if phys.transport_continuity else f.v
-        flux = fpi.mixture_flux(rows, eps, u, fam.v_p, fam.vol_p, phys.n_fluid)
+        flux = fpi.mixture_flux(rows, eps, continuity_velocity(phys, f), fam.v_p, fam.vol_p,
+                                phys.n_fluid)
     return rows, eps_raw, eps, flux
 
 
