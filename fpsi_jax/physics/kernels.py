@@ -27,14 +27,14 @@ SUPPORT = 2.0  # both kernels vanish for q >= 2
 
 
 def _clip_q(r, h):
-    return jnp.minimum(r / h, SUPPORT)
+    return jnp.minimum(r * (1.0 / h), SUPPORT)
 
 
 # --- Wendland C2 -------------------------------------------------------------------------
 def wendland_w(r, h):
     """Wendland C2 kernel value (K28, W41)."""
-    q = _clip_q(r, h)
-    return 7.0 / (4.0 * jnp.pi * h * h) * (1.0 - 0.5 * q) ** 4 * (2.0 * q + 1.0)
+    q, ih = _clip_q(r, h), 1.0 / h
+    return (7.0 / (4.0 * jnp.pi)) * (ih * ih) * (1.0 - 0.5 * q) ** 4 * (2.0 * q + 1.0)
 
 
 def wendland_dw_dr(r, h):
@@ -45,8 +45,10 @@ def wendland_dw_dr(r, h):
 
 def wendland_grad_factor(r2, h):
     """(1/r) dW/dr for Wendland C2: −35/(4πh⁴) (1 − q/2)³, finite at r = 0."""
-    q = jnp.minimum(safe_sqrt(r2) / h, SUPPORT)
-    return -35.0 / (4.0 * jnp.pi * h ** 4) * (1.0 - 0.5 * q) ** 3
+    ih = 1.0 / h
+    q = jnp.minimum(safe_sqrt(r2) * ih, SUPPORT)
+    ih2 = ih * ih
+    return (-35.0 / (4.0 * jnp.pi)) * (ih2 * ih2) * (1.0 - 0.5 * q) ** 3
 
 
 # --- cubic spline ------------------------------------------------------------------------
