@@ -51,12 +51,12 @@ def structure_mask(idx, first, n_structure):
     return (idx >= first) & (idx < first + n_structure)
 
 
-def pressure_gradient_bracket(coef, p_i, rho_i, rho_j, idx, first, n_structure):
+def pressure_gradient_bracket(coef, p_i, inv_rho_i, inv_rho_j, idx, first, n_structure):
     """The pressure bracket ``coef`` (K34: P_i/ρ_i² + P_j/ρ_j²) with the fluid–structure pairs
     (neighbour index in [first, first + n_structure)) of the pressure-gradient method replaced
-    by P_F/(ρ_F ρ_S) (K40)."""
+    by P_F/(ρ_F ρ_S) (K40); the densities are given as 1/ρ."""
     is_structure = structure_mask(idx, first, n_structure)
-    return jnp.where(is_structure, (p_i / rho_i)[:, None] / rho_j, coef)
+    return jnp.where(is_structure, (p_i * inv_rho_i)[:, None] * inv_rho_j, coef)
 
 
 def approximate_pressure(kern, n_fluid, x, h, rho, p, mass, idx_s):

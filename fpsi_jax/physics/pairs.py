@@ -46,7 +46,8 @@ class Pairs(NamedTuple):
     f: jax.Array        # F_ij = (1/r) dW/dr, so ∇_iW_ij = x_ij F_ij
     vij: jax.Array      # v_ij (n_rows, K, 2)
     m_j: jax.Array      # m_j
-    rho_j: jax.Array    # ρ_j at the start of the step (for the volumes m_j/ρ_j)
+    rho_j: jax.Array    # ρ_j at the start of the step
+    vol_j: jax.Array    # m_j/ρ_j, the neighbour's volume (divided once per particle)
     row0: Any = 0       # index of the first row (a traced scalar inside :func:`over_row_blocks`)
 
     def own(self, a):
@@ -94,12 +95,15 @@ def gather(a, idx, fill=1.0):
 
 def pairs(kern, n_fluid, x, v, h, m, rho, idx, row0=0) -> Pairs:
     """Pair geometry for the rows ``idx`` (particles row0 … row0 + idx.shape[0] − 1 of x).
-    One packed gather of [x, y, vx, vy, h, m, ρ]; the padding row sits far away so
-    W = F = 0 there."""
+    One packed gather of [x, y, vx, vy, h, m, ρ, m/ρ]; the padding row sits far away so
+    W = F = 0 there. The volume m/ρ is divided once per particle and gathered: XLA:CPU
+    keeps true divides (docs/design.md, *XLA:CPU settings*), about ten times a multiply,
+    so a divide in every pair term is a large part of a pass (docs/performance.md)."""
     rows = idx.shape[0]
-    table = jnp.concatenate([x, v, h[:, None], m[:, None], rho[:, None]], axis=1)
-    dummy = jnp.array([FAR, FAR, 0.0, 0.0, 1.0, 1.0, 1.0], dtype=table.dtype)[None]
-    nbr = jnp.concatenate([table, dummy], axis=0)[idx]   # (rows, K, 7)
+    table = jnp.concatenate([x, v, h[:, None], m[:, None], rho[:, None], (m / rho)[:, None]],
+                            axis=1)
+    dummy = jnp.array([FAR, FAR, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0], dtype=table.dtype)[None]
+    nbr = jnp.concatenate([table, dummy], axis=0)[idx]   # (rows, K, 8)
     own = rows_of(table, row0, rows)
     dx = own[:, None, 0:2] - nbr[..., 0:2]
     r2 = jnp.sum(dx * dx, axis=-1)
@@ -107,7 +111,8 @@ def pairs(kern, n_fluid, x, v, h, m, rho, idx, row0=0) -> Pairs:
     w = kern.w(safe_sqrt(r2), hij)
     f = kern.grad_factor(r2, hij)
     vij = own[:, None, 2:4] - nbr[..., 2:4]
-    return Pairs(idx, idx < n_fluid, dx, r2, hij, w, f, vij, nbr[..., 5], nbr[..., 6], row0)
+    return Pairs(idx, idx < n_fluid, dx, r2, hij, w, f, vij, nbr[..., 5], nbr[..., 6],
+                 nbr[..., 7], row0)
 
 
 #: fewer blocks than this are done as one pass: below ~16k rows the arrays of all rows still

@@ -38,7 +38,7 @@ def continuity(rho_i, pr: Pairs):
 
 def continuity_pairs(pr: Pairs):
     """Pair terms (m_j/ρ_j) v_ij·∇_iW_ij of :func:`continuity` (without the factor ρ_i)."""
-    return pr.m_j / pr.rho_j * jnp.sum(pr.vij * pr.dx, axis=-1) * pr.f
+    return pr.vol_j * jnp.sum(pr.vij * pr.dx, axis=-1) * pr.f
 
 
 def delta_pairs(delta, c0, rho_i, pr: Pairs, diffused=None, hydrostatic=None):
@@ -64,7 +64,7 @@ def delta_pairs(delta, c0, rho_i, pr: Pairs, diffused=None, hydrostatic=None):
         # ρ_j − ρ_i − ρ^H_ji, ρ^H_ji = (ρ0/c0²) g·x_ji = −(ρ0/c0²) g·x_ij
         diff = diff + (pr.dx[..., 0] * hydrostatic[0] + pr.dx[..., 1] * hydrostatic[1])
     s = (2.0 * diff * (-pr.r2 * pr.f)
-         * _inv_soft_r2(pr) * pr.m_j / pr.rho_j)
+         * _inv_soft_r2(pr) * pr.vol_j)
     return delta * c0 * jnp.where(pr.fluid_j, pr.hij * s, 0.0)
 
 
@@ -75,20 +75,21 @@ def pressure_scalar(m_j, coef, f):
     return -(m_j * coef * f)
 
 
-def voidage_bracket(p_i, rt_i, p_j, rt_j):
-    """Pressure bracket with grains, (P_i + P_j)/(ρ̃_i ρ̃_j), ρ̃ = ερ: W43's ερ in the other
+def voidage_bracket(p_i, inv_rt_i, p_j, inv_rt_j):
+    """Pressure bracket with grains, (P_i + P_j)/(ρ̃_i ρ̃_j), ρ̃ = ερ (given as 1/ρ̃): W43's ερ in the other
     symmetric SPH form (still antisymmetric: momentum is conserved). W43 as printed,
     P_i/ρ̃_i² + P_j/ρ̃_j², gives a uniform pressure a net force wherever ε varies,
     ∝ (ε_j/ε_i + ε_i/ε_j − 2) per pair: next to a 2.5 mm grain among 1.5 mm fluid particles
     it pushed still water with up to 0.5 g. This form exerts none for a uniform P on a
     uniform lattice, whatever ε is."""
-    return (p_i[:, None] + p_j) / (rt_i[:, None] * rt_j)
+    return (p_i[:, None] + p_j) * (inv_rt_i[:, None] * inv_rt_j)
 
 
-def viscous_scalar(mu_i, mu_j, rho_i, rho_j, pr: Pairs):
+def viscous_scalar(mu_i, mu_j, inv_rho_i, inv_rho_j, pr: Pairs):
     """Morris viscosity (K36), per pair: the scalar s of the pair term s v_ij =
-    m_j (μ_i + μ_j) v_ij (x_ij·∇_iW_ij)/(ρ_i ρ_j (r² + 0.01h²))."""
-    return (pr.m_j * (mu_i + mu_j) * pr.r2 * pr.f * (1.0 / rho_i)[:, None] / rho_j
+    m_j (μ_i + μ_j) v_ij (x_ij·∇_iW_ij)/(ρ_i ρ_j (r² + 0.01h²)); the densities are given
+    as 1/ρ."""
+    return (pr.m_j * (mu_i + mu_j) * pr.r2 * pr.f * inv_rho_i[:, None] * inv_rho_j
             * _inv_soft_r2(pr))
 
 
@@ -103,9 +104,10 @@ def artificial_viscosity_scalar(alpha, c0, rho_i, rho_j, pr: Pairs):
     return -(pr.m_j * pi_ij * pr.f)
 
 
-def anticlump(r, p_i, rho_i, p_j, rho_j, w, w_dp):
-    """R_ij = r (|P_i|/ρ_i² + |P_j|/ρ_j²) (W_ij/W(Δp))⁴ (W45, K38; Monaghan 2000)."""
-    base = jnp.abs(p_i / rho_i ** 2)[:, None] + jnp.abs(p_j / rho_j ** 2)
+def anticlump(r, pr2_i, pr2_j, w, w_dp):
+    """R_ij = r (|P_i|/ρ_i² + |P_j|/ρ_j²) (W_ij/W(Δp))⁴ (W45, K38; Monaghan 2000), given
+    P/ρ² of the rows (``pr2_i``) and of their neighbours (``pr2_j``)."""
+    base = jnp.abs(pr2_i)[:, None] + jnp.abs(pr2_j)
     return r * base * (w / w_dp) ** 4
 
 
@@ -206,31 +208,34 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
     ``rho``/``p`` cover all particles (fluid, boundary,
     structure) at the new time level. With grains, ``eps`` is the voidage of every particle
     (1 off the fluid) and the pressure bracket is :func:`voidage_bracket`; the anti-clump
-    term (W45) uses ερ too, the viscosity (W44) and XSPH keep ρ. ``structure_bracket(coef, p_i, ρ_i, ρ_j, idx)``, when given,
+    term (W45) uses ερ too, the viscosity (W44) and XSPH keep ρ. ``structure_bracket(coef, p_i, 1/ρ_i, 1/ρ_j, idx)``, when given,
     replaces the bracket of the fluid–structure pairs (the pressure-gradient coupling, K40:
     ``fsi.pressure_gradient_bracket``). With ``Physics.shifting`` = A > 0 the position
     term also carries :func:`shifting_velocity` (``h`` all particles' smoothing lengths,
     ``dt`` the step). Returns (a, δv_XSPH (+ shifting),
     pair accelerations (rows, K, 2) if ``with_pairs`` else None)."""
-    rho_i, p_i = pr.own(rho), pr.own(p)
-    rp = gather(jnp.stack([rho, p], axis=1), pr.idx)   # second (small) gather: new ρ, P
-    rho_j, p_j = rp[..., 0], rp[..., 1]
-    if eps is None:
-        rhp_i, rhp_j = rho_i, rho_j
-    else:
-        rhp_i, rhp_j = rho_i * pr.own(eps), rho_j * gather(eps, pr.idx)
+    # the densities' reciprocals and P/ρ̃² once per particle, gathered with the new ρ and P
+    # (second, small gather): a divide per pair costs about ten multiplies (pairs.pairs)
+    inv_rho = 1.0 / rho
+    inv_rhp = inv_rho if eps is None else 1.0 / (rho * eps)      # ρ̃ = ερ with grains
+    pr2 = p * inv_rhp * inv_rhp
+    cols = [rho, p, pr2, inv_rho] + ([] if eps is None else [inv_rhp])
+    rp = gather(jnp.stack(cols, axis=1), pr.idx)
+    rho_j, p_j, pr2_j, inv_rho_j = rp[..., 0], rp[..., 1], rp[..., 2], rp[..., 3]
+    inv_rhp_j = inv_rho_j if eps is None else rp[..., 4]
+    rho_i, p_i, pr2_i = pr.own(rho), pr.own(p), pr.own(pr2)
+    inv_rho_i, inv_rhp_i = pr.own(inv_rho), pr.own(inv_rhp)
     with jax.named_scope("sph.pressure"):
         if eps is None:
-            coef = (p_i / rhp_i ** 2)[:, None] + p_j / rhp_j ** 2
+            coef = pr2_i[:, None] + pr2_j
         else:
-            coef = voidage_bracket(p_i, rhp_i, p_j, rhp_j)
+            coef = voidage_bracket(p_i, inv_rhp_i, p_j, inv_rhp_j)
         if structure_bracket is not None:
             with jax.named_scope("fsi.pressure_bracket"):
-                coef = structure_bracket(coef, p_i, rho_i, rho_j, pr.idx)
+                coef = structure_bracket(coef, p_i, inv_rho_i, inv_rho_j, pr.idx)
         if phys.anticlump:
             with jax.named_scope("sph.anticlump"):
-                r_ij = anticlump(sp.r_clump, p_i, rhp_i, p_j, rhp_j, pr.w,
-                                 kern.w(sp.dp, pr.hij))
+                r_ij = anticlump(sp.r_clump, pr2_i, pr2_j, pr.w, kern.w(sp.dp, pr.hij))
                 if not phys.anticlump_boundary:
                     r_ij = jnp.where(pr.fluid_j, r_ij, 0.0)
                 coef = coef + r_ij
@@ -248,7 +253,7 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
             solid_share = (1.0 - keep)[:, None] * solid_share
             s_dx = keep[:, None] * s_dx
     with jax.named_scope("sph.viscosity"):
-        s_v = viscous_scalar(sp.mu, sp.mu, rho_i, rho_j, pr)
+        s_v = viscous_scalar(sp.mu, sp.mu, inv_rho_i, inv_rho_j, pr)
     if phys.artificial_viscosity:
         with jax.named_scope("sph.artificial_viscosity"):
             s_dx = s_dx + artificial_viscosity_scalar(sp.alpha, sp.c0, rho_i, rho_j, pr)
@@ -270,7 +275,7 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
     if phys.shifting > 0:
         with jax.named_scope("sph.shifting"):
             live = pr.w > 0                  # padding slots carry no volume
-            vol_j = jnp.where(live, pr.m_j / jnp.where(live, rhp_j, 1.0), 0.0)
+            vol_j = jnp.where(live, pr.m_j * inv_rhp_j, 0.0)
             s_c, div = shifting_scalars(vol_j, pr)
             terms += (s_c * dxx, s_c * dxy, div)
     sums = sum_neighbours(*terms)

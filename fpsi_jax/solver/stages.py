@@ -576,8 +576,9 @@ def fluid_momentum(phys: Physics, params: Params, state: State, fam: SphFamily, 
     bracket = None
     if fs is not None and phys.fsi is FsiMethod.PRESSURE_GRADIENT:
         n_s = phys.n_structure
-        bracket = (lambda coef, p_i, rho_i, rho_j, ix:
-                   fsi.pressure_gradient_bracket(coef, p_i, rho_i, rho_j, ix, first, n_s))
+        bracket = (lambda coef, p_i, inv_rho_i, inv_rho_j, ix:
+                   fsi.pressure_gradient_bracket(coef, p_i, inv_rho_i, inv_rho_j, ix, first,
+                                                 n_s))
     eps_all = None
     if lvl.eps is not None:
         eps_all = _cat(lvl.eps, None if b is None else jnp.ones_like(b.rho),

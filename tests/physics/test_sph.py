@@ -172,7 +172,7 @@ def test_viscous_term_morris():
     # μ_i, μ_j
     pr = _pairs()
     rho_j = pairs.gather(_a(RHO), pr.idx)
-    s = sph.viscous_scalar(0.01, 0.03, _a(RHO[:NF]), rho_j, pr)
+    s = sph.viscous_scalar(0.01, 0.03, 1.0 / _a(RHO[:NF]), 1.0 / rho_j, pr)
     got = jnp.sum(s[..., None] * pr.vij, axis=1)
     np.testing.assert_allclose(np.asarray(got), want, rtol=RTOL)   # μ_i + μ_j = 2·0.02
 
@@ -207,8 +207,8 @@ def test_anticlump_function():
     pr = _pairs()
     rp = pairs.gather(jnp.stack([_a(RHO), _a(P)], axis=1), pr.idx)
     w_dp = KERN.w(SP["dp"], pr.hij)
-    r = np.asarray(sph.anticlump(SP["r_clump"], _a(P[:NF]), _a(RHO[:NF]), rp[..., 1],
-                                 rp[..., 0], pr.w, w_dp))
+    r = np.asarray(sph.anticlump(SP["r_clump"], _a(P[:NF]) / _a(RHO[:NF]) ** 2,
+                                 rp[..., 1] / rp[..., 0] ** 2, pr.w, w_dp))
     for i, nb in NBRS.items():
         for k, j in enumerate(nb):
             q = Pair(i, j, X, V, Hs)
