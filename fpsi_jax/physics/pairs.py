@@ -94,16 +94,28 @@ def gather(a, idx, fill=1.0):
 
 
 def pairs(kern, n_fluid, x, v, h, m, rho, idx, row0=0) -> Pairs:
-    """Pair geometry for the rows ``idx`` (particles row0 … row0 + idx.shape[0] − 1 of x).
-    One packed gather of [x, y, vx, vy, h, m, ρ, m/ρ]; the padding row sits far away so
-    W = F = 0 there. The volume m/ρ is divided once per particle and gathered: XLA:CPU
-    keeps true divides (docs/design.md, *XLA:CPU settings*), about ten times a multiply,
-    so a divide in every pair term is a large part of a pass (docs/performance.md)."""
-    rows = idx.shape[0]
+    """Pair geometry for the rows ``idx`` (particles row0 … row0 + idx.shape[0] − 1 of x):
+    :func:`pair_table` of the particles, then :func:`pairs_of`."""
+    return pairs_of(kern, n_fluid, pair_table(x, v, h, m, rho), idx, row0)
+
+
+def pair_table(x, v, h, m, rho):
+    """The (N + 1, 8) table [x, y, vx, vy, h, m, ρ, m/ρ] that :func:`pairs_of` gathers the
+    neighbours from, with the padding row N far away so that W = F = 0 there. The volume
+    m/ρ is divided once per particle and gathered: XLA:CPU keeps true divides (docs/design.md,
+    *XLA:CPU flags*), about ten times a multiply, so a divide in every pair term is a large
+    part of a pass (docs/performance.md). Built once per pass, outside its row blocks."""
     table = jnp.concatenate([x, v, h[:, None], m[:, None], rho[:, None], (m / rho)[:, None]],
                             axis=1)
     dummy = jnp.array([FAR, FAR, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0], dtype=table.dtype)[None]
-    nbr = jnp.concatenate([table, dummy], axis=0)[idx]   # (rows, K, 8)
+    return jnp.concatenate([table, dummy], axis=0)
+
+
+def pairs_of(kern, n_fluid, table, idx, row0=0) -> Pairs:
+    """Pair geometry for the rows ``idx`` (particles row0 … row0 + idx.shape[0] − 1) from a
+    :func:`pair_table`: one packed gather of the neighbours' rows."""
+    rows = idx.shape[0]
+    nbr = table[idx]                                      # (rows, K, 8)
     own = rows_of(table, row0, rows)
     dx = own[:, None, 0:2] - nbr[..., 0:2]
     r2 = jnp.sum(dx * dx, axis=-1)

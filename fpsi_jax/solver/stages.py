@@ -48,7 +48,7 @@ from ..model.params import Params
 from ..model.state import State
 from ..physics import bonds as bonds_law
 from ..physics import boundary, dem, eos, fpi, fsi, kernels, sph
-from ..physics.pairs import gather, over_row_blocks, pairs, rows_of, take_rows
+from ..physics.pairs import gather, over_row_blocks, pair_table, pairs_of, rows_of, take_rows
 from . import exits, health, neighbors
 
 
@@ -393,10 +393,10 @@ def pair_pass(phys: Physics, fam: SphFamily, rho_c_all, fn):
     volumes m_j/ρ_j from ``rho_c_all``) is built where it is summed, so the density pass and
     the momentum pass each recompute it rather than reading it back from memory."""
     kern = kernels.get(phys.kernel)
+    table = pair_table(fam.x, fam.v, fam.h, fam.m, rho_c_all)
 
     def block(row0, rows):
-        return fn(pairs(kern, phys.n_fluid, fam.x, fam.v, fam.h, fam.m, rho_c_all,
-                        rows_of(fam.idx, row0, rows), row0))
+        return fn(pairs_of(kern, phys.n_fluid, table, rows_of(fam.idx, row0, rows), row0))
     return over_row_blocks(block, phys.n_fluid, phys.pair_block)
 
 
