@@ -76,8 +76,8 @@ def pressure_scalar(m_j, coef, f):
 
 
 def voidage_bracket(p_i, inv_rt_i, p_j, inv_rt_j):
-    """Pressure bracket with grains, (P_i + P_j)/(ρ̃_i ρ̃_j), ρ̃ = ερ (given as 1/ρ̃): W43's ερ in the other
-    symmetric SPH form (still antisymmetric: momentum is conserved). W43 as printed,
+    """Pressure bracket with grains, (P_i + P_j)/(ρ̃_i ρ̃_j), ρ̃ = ερ (given as 1/ρ̃): W43's ερ
+    in the other symmetric SPH form (still antisymmetric: momentum is conserved). W43 as printed,
     P_i/ρ̃_i² + P_j/ρ̃_j², gives a uniform pressure a net force wherever ε varies,
     ∝ (ε_j/ε_i + ε_i/ε_j − 2) per pair: next to a 2.5 mm grain among 1.5 mm fluid particles
     it pushed still water with up to 0.5 g. This form exerts none for a uniform P on a
@@ -208,14 +208,16 @@ def momentum_rate(phys, kern, sp, gravity, rho, p, pr: Pairs, with_pairs=False, 
     ``rho``/``p`` cover all particles (fluid, boundary,
     structure) at the new time level. With grains, ``eps`` is the voidage of every particle
     (1 off the fluid) and the pressure bracket is :func:`voidage_bracket`; the anti-clump
-    term (W45) uses ερ too, the viscosity (W44) and XSPH keep ρ. ``structure_bracket(coef, p_i, 1/ρ_i, 1/ρ_j, idx)``, when given,
-    replaces the bracket of the fluid–structure pairs (the pressure-gradient coupling, K40:
+    term (W45) uses ερ too, the viscosity (W44) and XSPH keep ρ.
+    ``structure_bracket(coef, p_i, 1/ρ_i, 1/ρ_j, idx)``, when given, replaces the bracket
+    of the fluid–structure pairs (the pressure-gradient coupling, K40:
     ``fsi.pressure_gradient_bracket``). With ``Physics.shifting`` = A > 0 the position
     term also carries :func:`shifting_velocity` (``h`` all particles' smoothing lengths,
     ``dt`` the step). Returns (a, δv_XSPH (+ shifting),
     pair accelerations (rows, K, 2) if ``with_pairs`` else None)."""
     # the densities' reciprocals and P/ρ̃² once per particle, gathered with the new ρ and P
-    # (second, small gather): a divide per pair costs about ten multiplies (pairs.pairs)
+    # (second, small gather): a divide per pair costs about ten multiplies
+    # (pairs.pair_table)
     inv_rho = 1.0 / rho
     inv_rhp = inv_rho if eps is None else 1.0 / (rho * eps)      # ρ̃ = ερ with grains
     pr2 = p * inv_rhp * inv_rhp
