@@ -127,11 +127,12 @@ def pairs_of(kern, n_fluid, table, idx, row0=0) -> Pairs:
                  nbr[..., 7], row0)
 
 
-#: fewer blocks than this are done as one pass: below ~16k rows the arrays of all rows still
-#: fit the cache well enough that the blocks' loop costs more than it saves (dam break,
-#: two cores, blocks of 1 024: 12k particles 3.6 against 5.2 ms a step, 18k 6.7 against
-#: 8.5; 24k 12.4 against 9.9; docs/performance.md)
-MIN_BLOCKS = 16
+#: fewer blocks than this are done as one pass: below ~40k rows the arrays of all rows still
+#: fit the cache well enough that the blocks' loop costs more than it saves (dam break, two
+#: cores, blocks of 1 024, interleaved chunks: 230–247 against 252–270 ns a particle-step
+#: at 24k particles (20k fluid rows), 236 against 260 at 37k (32k rows); 291 against 275 at
+#: 53k (47k rows), 444 against 276 at 90k; docs/performance.md)
+MIN_BLOCKS = 40
 
 
 def over_row_blocks(fn, n_rows: int, block: int):

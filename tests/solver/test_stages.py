@@ -437,9 +437,9 @@ def test_sph_evaluation_in_row_blocks_equals_one_pass(name):
              "grain_bed": lambda: cases.build("grain_bed", t_end=0.01)}[name]()
     extra = {"grain_bed": dict(fpi_pressure="shared")}.get(name, {})
     one = init_x64(scene, pair_block=0, x64=True, **extra)
-    phys = setup(scene, pair_block=13, x64=True, **extra)[0]
+    phys = setup(scene, pair_block=8, x64=True, **extra)[0]
     p, st = one[1:]
-    assert phys.n_fluid >= MIN_BLOCKS * 13 and phys.n_fluid % 13   # last block overlaps
+    assert phys.n_fluid >= MIN_BLOCKS * 8 and phys.n_fluid % 8   # last block overlaps
     evaluate = jax.jit(lambda ph, pp, s: stages.evaluate_fluid(ph, pp, s, pp.dt),
                        static_argnums=0)
     want, got = evaluate(*one), evaluate(phys, p, st)
