@@ -507,8 +507,9 @@ def grow(cfg: NeighborConfig, nbrs: partition.NeighborList, need=(0, 0, 0)) -> N
     neighbours of a ``fluid_only_rows`` row) that the run's rebuilds have found so far
     (:func:`update`, ``Status.sph_need``; zeros: unknown). What overflowed, the rows, the
     cells or the width the sums read of the wall rows (:attr:`NeighborConfig.wall_width`),
-    gets room for its need times the capacity multiplier (and at least one slot more than
-    it had), as a fresh allocation gives, and nothing else grows: a cell's capacity sets
+    gets room for its need times the capacity multiplier (the cells: times
+    :attr:`NeighborConfig.cell_multiplier` where set; and at least one slot more than it
+    had), as a fresh allocation gives, and nothing else grows: a cell's capacity sets
     the width of the rebuild's candidate pass (9 cells × the capacity), the rows' that of
     every pair pass. Without a need, or for a
     list without a cell list (jax-md's O(N²) search, whose allocation knows only
@@ -536,7 +537,8 @@ def grow(cfg: NeighborConfig, nbrs: partition.NeighborList, need=(0, 0, 0)) -> N
         rows = max(capacity(nbrs) + 1, int(np.ceil(rows_need * mult)), cfg.min_neighbors)
         cfg = dataclasses.replace(cfg, min_neighbors=rows)
     if cells_over:
-        cells = max(int(nbrs.cell_list_capacity) + 1, int(np.ceil(cells_need * mult)),
+        cells = max(int(nbrs.cell_list_capacity) + 1,
+                    int(np.ceil(cells_need * (cfg.cell_multiplier or mult))),
                     cfg.min_cell_capacity)
         cfg = dataclasses.replace(cfg, min_cell_capacity=cells)
     return cfg

@@ -199,6 +199,10 @@ def test_grow_after_a_cell_overflow_grows_the_cells_to_their_need():
     assert fits.cell_list_capacity >= grown.min_cell_capacity
     code = int(neighbors.rebuild(grown, fits, xp).error.code)
     assert not code & int(partition.PartitionErrorCode.CELL_LIST_OVERFLOW)
+    # a scene whose cells are allocated wider (grains in the fluid) regrows them as wide
+    import dataclasses
+    wide = dataclasses.replace(cfg, cell_multiplier=2.0)
+    assert neighbors.grow(wide, over, need).min_cell_capacity == 2 * fullest
     blind = neighbors.grow(cfg, over, (0, 0))
     assert blind.extra_capacity == cfg.extra_capacity + max(8, neighbors.capacity(nbrs) // 2)
 
