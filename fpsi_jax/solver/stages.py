@@ -33,13 +33,6 @@ With fluid and discs together the step is multi-rate and staggered: the discs ta
 ``physics.dem_substeps`` sub-steps under the fluid force of the last SPH evaluation (held
 over the sub-steps), then the fluid steps against the discs at the end of the step and
 returns the new force (docs/design.md says why impulse splitting was rejected).
-
-**Gradients.** The pair laws (DEM contacts, walls and bonds, the SPH pair passes, the wall
-pressure extrapolation) are called through :func:`recomputed` (``jax.checkpoint``). A
-forward run is unchanged; reverse mode keeps their inputs instead of their many (n, K)
-intermediates and evaluates the law again when it needs them. Storing those intermediates
-step after step (one buffer write each, ~80 a step for the cantilever) cost more than
-evaluating the law twice (docs/performance.md, *Gradients*).
 """
 from __future__ import annotations
 
@@ -57,12 +50,6 @@ from ..physics import bonds as bonds_law
 from ..physics import boundary, dem, eos, fpi, fsi, kernels, sph
 from ..physics.pairs import gather, over_row_blocks, pair_table, pairs_of, rows_of, take_rows
 from . import exits, health, neighbors
-
-
-def recomputed(fn, *static_argnums):
-    """``fn`` with its intermediates recomputed in reverse mode rather than stored
-    (``jax.checkpoint``; the module docstring says why). ``static_argnums`` as for jit."""
-    return jax.checkpoint(fn, static_argnums=static_argnums)
 
 
 def dtype(phys: Physics):
@@ -147,9 +134,9 @@ def _wall_forces(dp, own, s, walls, wall_shear, dt):
     evaluating a pair while ``walls.apart`` (no disc can touch: a history of 0 is what the
     contact law leaves on pairs apart)."""
     def touching():
-        return recomputed(dem.wall_contacts)(dp, own(s.x), own(s.v), own(s.omega),
-                                             own(s.radius), own(s.mass), walls.a, walls.b,
-                                             own(wall_shear), dt, walls.side)[:3]
+        return dem.wall_contacts(dp, own(s.x), own(s.v), own(s.omega), own(s.radius),
+                                 own(s.mass), walls.a, walls.b, own(wall_shear), dt,
+                                 walls.side)[:3]
 
     if walls.apart is None:
         return touching()
@@ -174,9 +161,9 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
     rows = _moving_rows(phys)
     own = functools.partial(take_rows, rows=rows)      # this call's rows of an (n, …) array
     with jax.named_scope("dem.contacts"):
-        force, torque, shear, _ = recomputed(dem.disc_contacts)(
-            dp, x, v, omega, s.radius, s.mass, s.fixed, own(state.solid_nbrs.idx), own(s.shear),
-            dt, rows)
+        force, torque, shear, _ = dem.disc_contacts(dp, x, v, omega, s.radius, s.mass, s.fixed,
+                                                    own(state.solid_nbrs.idx), own(s.shear),
+                                                    dt, rows)
     wall_shear = s.wall_shear
     if state.walls is not None:
         with jax.named_scope("dem.walls"):
@@ -198,7 +185,7 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
                 fp.lub_gap_min, fp.lub_cutoff, grains))
     if b is not None:
         with jax.named_scope("bonds"):
-            fb, tb, alive, mode, fn, fs, m = recomputed(bonds_law.bond_forces, 1, 2)(
+            fb, tb, alive, mode, fn, fs, m = bonds_law.bond_forces(
                 params.bond, phys.bond_section, phys.n_solid, x, s.theta, s.radius,
                 b.i, b.j, b.d0, b.e0, b.intact)
             new = b.intact & ~alive
@@ -409,9 +396,7 @@ def pair_pass(phys: Physics, fam: SphFamily, rho_c_all, fn):
     table = pair_table(fam.x, fam.v, fam.h, fam.m, rho_c_all)
 
     def block(row0, rows):
-        def summed(table, idx):
-            return fn(pairs_of(kern, phys.n_fluid, table, idx, row0))
-        return recomputed(summed)(table, rows_of(fam.idx, row0, rows))
+        return fn(pairs_of(kern, phys.n_fluid, table, rows_of(fam.idx, row0, rows), row0))
     return over_row_blocks(block, phys.n_fluid, phys.pair_block)
 
 
@@ -559,7 +544,7 @@ def wall_pressure(phys: Physics, params: Params, state: State, fam: SphFamily,
     nb = fam.first_s - nf
     if b is not None and phys.boundary_pressure is BoundaryPressure.EXTRAPOLATED:
         with jax.named_scope("boundary.extrapolated"):
-            pb = recomputed(boundary.extrapolated_pressure, 0, 1)(
+            pb = boundary.extrapolated_pressure(
                 nf, kern, g, fam.x, fam.h, _cat(lvl.rho, b.rho, _opt(fs, "rho")),
                 _cat(lvl.p, b.p, _opt(fs, "p")),
                 neighbors.wall_rows(phys.neighbors, fam.idx, nf, nb))
@@ -571,8 +556,8 @@ def wall_pressure(phys: Physics, params: Params, state: State, fam: SphFamily,
         idx_s = neighbors.wall_rows(phys.neighbors, fam.idx, fam.first_s, fs.idx.shape[0])
         if phys.fsi is FsiMethod.EXTRAPOLATED:
             with jax.named_scope("fsi.extrapolated"):
-                ps = recomputed(boundary.extrapolated_pressure, 0, 1, 9)(
-                    nf, kern, g, fam.x, fam.h, rho_all, p_all, idx_s, fam.a_s, fam.first_s)
+                ps = boundary.extrapolated_pressure(nf, kern, g, fam.x, fam.h, rho_all, p_all,
+                                                    idx_s, acc_b=fam.a_s, first=fam.first_s)
         else:
             with jax.named_scope("fsi.pressure_approximation"):
                 ps = fsi.approximate_pressure(kern, nf, fam.x, fam.h, rho_all, p_all, fam.m,

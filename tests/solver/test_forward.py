@@ -22,7 +22,7 @@ from fpsi_jax.model.params import BondParams, DemParams, Params
 from fpsi_jax.model.scene import BondBlock, Scene
 from fpsi_jax.physics import dem, fpi, kernels
 from fpsi_jax.run.driver import setup
-from fpsi_jax.solver import forward, init, stages, timestep
+from fpsi_jax.solver import forward, init, timestep
 
 from ..finite_differences import fd_check
 from ..small_scenes import coarse_plate, grain_scene, init_x64
@@ -361,47 +361,6 @@ def test_grad_of_rollout_tip_displacement_wrt_bond_kn():
     assert abs(float(tip(kn))) > 1e-7                       # the tip moved
     assert g != 0.0
     assert g == pytest.approx(fd, rel=1e-5)
-
-
-@x64
-@pytest.mark.parametrize("which", ["bonded bar", "tank"])
-def test_recomputed_pair_laws_give_the_stored_gradient(which, monkeypatch):
-    """stages.recomputed (jax.checkpoint around the pair laws) changes what reverse mode
-    stores, not the derivative: the gradient equals the one with every intermediate stored,
-    to round-off (bonds, contacts; SPH pair passes and the extrapolated wall pressure)."""
-    if which == "bonded bar":
-        sc = _bar_scene()
-        phys = Physics.for_scene(sc, x64=True)
-        p = sc.params.replace(dt=0.25 * timestep.dem_dt(sc, sc.params)).as_arrays(jnp.float64)
-
-        def with_param(q, a):
-            return q.replace(bond=q.bond.replace(kn=a))
-        a0, n = KN, 150
-    else:
-        sc = cases.build("hydrostatic_tank", dx=0.02, depth=0.06, width=0.06)
-        sc.fluid.v = np.random.default_rng(3).normal(0.0, 0.3, sc.fluid.x.shape)
-        phys = Physics.for_scene(sc, x64=True, artificial_viscosity=True)
-        p = sc.params.replace(dt=timestep.stable_dt(sc)).as_arrays(jnp.float64)
-
-        def with_param(q, a):
-            return q.replace(sph=q.sph.replace(c0=a))
-        a0, n = float(p.sph.c0), 20
-    st = init.init_state(sc, phys, p)
-
-    def grad():
-        def loss(a):
-            q = with_param(p, a)
-            end, _ = forward.rollout(phys, init.refresh_rates(phys, st, q), q, n)
-            x = end.solid.x if which == "bonded bar" else end.fluid.x
-            return jnp.sum(x * x) + 0.1 * jnp.sum((end.solid.v if which == "bonded bar"
-                                                    else end.fluid.v) ** 2)
-        return float(jax.jit(jax.grad(loss))(jnp.asarray(a0)))
-
-    recomputed = grad()
-    monkeypatch.setattr(stages, "recomputed", lambda fn, *static: fn)
-    stored = grad()
-    assert stored != 0.0
-    assert recomputed == pytest.approx(stored, rel=1e-10)
 
 
 # --- grains in the fluid over rollouts (float64) -----------------------------------------
