@@ -4,11 +4,15 @@ The target is the front within 5 % of the K&O points for T <= 2.5; ours runs abo
 ahead. This experiment asks whether that is our model or the data: it runs the stock
 ``pysph.examples.dam_break_2d`` (an independent WCSPH code: Gomez-Gesteira's 1 x 2 m column,
 the same n^2 = 2 aspect ratio) in the PySPH virtual environment that ``peers.py`` builds,
-and measures its front with our definition, next to ours at three resolutions and next to
-the Martin & Moyce experiment for the same aspect ratio.
+and DualSPHysics 5.4 built from its source on our own particles (``dualsphysics.py``), and
+measures their fronts with our definition, next to ours at three resolutions and next to
+the Martin & Moyce experiment for the same aspect ratio. ``wall_s`` is each run's whole
+process or call (ours with its XLA compilation, ``compile_and_first_chunk_s``), and
+``wall_per_unit_T`` the same per unit of T: the runs' geometries differ in size, so that
+is the per-simulated-time figure to compare at equal a/dx.
 
     .venv/bin/python experiments/dam_break_front_peers.py            # ~3 min, PySPH built
-    .venv/bin/python experiments/dam_break_front_peers.py --no-pysph  # ours only
+    .venv/bin/python experiments/dam_break_front_peers.py --no-pysph --dsph-dx  # ours only
 
 Writes experiments/results/dam_break_front_peers.{json,csv,png}.
 
@@ -109,7 +113,8 @@ def run_ours(dx):
     T, Z = dam_break_front(scene, res)
     return {"code": "fpsi-jax", "label": f"fpsi-jax dx {dx * 1e3:g} mm", "dx": dx,
             "a_over_dx": a / dx, "n_particles": scene.n_particles, "steps": res.n_steps,
-            "wall_s": wall, "T": np.r_[0.0, T].tolist(), "Z": np.r_[1.0, Z].tolist()}
+            "wall_s": wall, "driver_wall_s": res.wall_s,
+            "compile_and_first_chunk_s": res.compile_s, "T": np.r_[0.0, T].tolist(), "Z": np.r_[1.0, Z].tolist()}
 
 
 def run_pysph(venv, scheme, dx, threads=2):
@@ -145,6 +150,22 @@ def run_pysph(venv, scheme, dx, threads=2):
     return res
 
 
+def run_dsph(dx, threads=2):
+    """DualSPHysics 5.4 (built from source by dualsphysics.py) on our particles at ``dx``,
+    its stock dam-break settings; front from its output parts every ΔT = 0.05."""
+    import dualsphysics
+    _, _, _, k = dualsphysics.case_particles(dx)
+    a = k["column_width"]
+    scale = np.sqrt(2 * k["g"] / a)
+    res = dualsphysics.run(dx, T_RUN / scale, 0.05 / scale, threads=threads, read_parts=True)
+    t, x = np.asarray(res.pop("x_max")).T
+    res.pop("parts")
+    return {"code": "DualSPHysics", "label": f"DualSPHysics 5.4 dx {dx * 1e3:g} mm", "dx": dx,
+            "a_over_dx": a / dx, "n_particles": res["case"]["n_particles"],
+            "steps": res["steps"], "wall_s": res["process_wall_s"], "dsph": res,
+            "T": (t * scale).tolist(), "Z": ((x + 0.5 * dx) / a).tolist()}
+
+
 def plot(runs, ko, mm, path):
     import matplotlib
     matplotlib.use("Agg")
@@ -154,7 +175,7 @@ def plot(runs, ko, mm, path):
     ax.plot(mm[:, 0], mm[:, 1], "k^", mfc="none", label="Martin & Moyce 1952, a = 2.25 in")
     ax.plot(np.linspace(0, T_RUN), 1 + 2 * np.linspace(0, T_RUN), "k:", lw=0.8,
             label="Ritter (shallow water), Z = 1 + 2T")
-    styles = {"fpsi-jax": "-", "PySPH": "--"}
+    styles = {"fpsi-jax": "-", "PySPH": "--", "DualSPHysics": "-."}
     for r in runs:
         ax.plot(r["T"], r["Z"], styles[r["code"]], lw=1.3,
                 label=f"{r['label']} ({100 * r['vs_ko']['worst']:+.1f} %)")
@@ -177,6 +198,8 @@ def main():
     ap.add_argument("--pysph", nargs="*", default=["wcsph:0.03", "wcsph:0.02", "edac:0.03"],
                     help="scheme:dx pairs")
     ap.add_argument("--no-pysph", action="store_true")
+    ap.add_argument("--dsph-dx", type=float, nargs="*", default=[0.005, 0.0025],
+                    help="DualSPHysics runs (built from source on first use: ~6-8 min)")
     ap.add_argument("--venv", default=peers.DEFAULT_VENV)
     ap.add_argument("--skip-install", action="store_true")
     args = ap.parse_args()
@@ -207,8 +230,20 @@ def main():
         except peers.PeerError as e:
             pysph_status = f"failed: {e}"
             print(pysph_status, file=sys.stderr)
+    dsph_status = "not run (--dsph-dx with no values)"
+    if args.dsph_dx:
+        import dualsphysics
+        try:
+            for dx in args.dsph_dx:
+                print(f"DualSPHysics dx = {dx}", flush=True)
+                runs.append(run_dsph(dx))
+            dsph_status = "run (built from source by experiments/dualsphysics.py)"
+        except dualsphysics.DsphError as e:
+            dsph_status = f"failed: {e}"
+            print(dsph_status, file=sys.stderr)
     for r in runs:
         T, Z = np.asarray(r["T"]), np.asarray(r["Z"])
+        r["wall_per_unit_T"] = r["wall_s"] / float(T[-1])
         r["vs_ko"] = errors(T, Z, ko)
         r["vs_mm_2.25in"] = errors(T, Z, mm, t_max=3.0)
         r["vs_mm_1.125in"] = errors(T, Z, mm1, t_max=3.0)
@@ -228,7 +263,7 @@ def main():
     slim = [{k: v for k, v in r.items() if k not in ("T", "Z", "stock_T", "stock_Z")}
             for r in runs]
     with open(os.path.join(RESULTS, "dam_break_front_peers.json"), "w") as fh:
-        json.dump({"generated": time.strftime("%Y-%m-%d %H:%M:%S"), "pysph": pysph_status,
+        json.dump({"generated": time.strftime("%Y-%m-%d %H:%M:%S"), "pysph": pysph_status, "dualsphysics": dsph_status,
                    "front_definition": "Z = (x_max + dx/2 - x_wall)/a_eff, T = t sqrt(2g/a_eff)",
                    "window": f"0 < T <= {T_MAX} (K&O), T <= 3 (M&M)", "runs": slim}, fh,
                   indent=1)

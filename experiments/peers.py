@@ -1,15 +1,34 @@
 """Peers side by side on this machine: the same case (2D dam break), a similar particle
-count and the same number of steps, for us and for PySPH; particle-steps/s of each and our
-ratio, with the fixed figures measured here earlier for the peers that no registry installs
-(DualSPHysics 5.4, JAX-SPH 0.1.0).
+count and the same number of steps, for us, PySPH and DualSPHysics; particle-steps/s of
+each, wall seconds per simulated second, and our ratios; with the fixed figures measured
+here earlier for JAX-SPH, which no registry installs.
 
     nice -n 10 .venv/bin/python experiments/peers.py                # install PySPH, 5k + 20k
     nice -n 10 .venv/bin/python experiments/peers.py --sizes 5000 20000 80000 --steps 200
-    nice -n 10 .venv/bin/python experiments/peers.py --ours-only    # re-measure us, keep PySPH
+    nice -n 10 .venv/bin/python experiments/peers.py --ours-only    # re-measure us, keep peers
     nice -n 10 .venv/bin/python experiments/peers.py --pysph-only --skip-install
+    nice -n 10 .venv/bin/python experiments/peers.py --sizes --front-dx 0.005 0.0025 \
+        --skip-install     # the whole K&O window only: speed at equal accuracy
 
 Writes experiments/results/peers.json (merged per size: a run with --ours-only keeps the
-PySPH figures of the last run, and the reverse) and peers.png.
+peers' figures of the last run, and the reverse) and peers.png.
+
+DualSPHysics
+    DualSPHysics 5.4's CPU solver built from its public source by ``dualsphysics.py``
+    (a shallow clone, Chrono / WaveGen / MoorDyn+ off, ~6 min on 2 cores, cached) and run
+    on our own particles at our dx (GenCase is published as a binary only; the same
+    particles on both sides), with its stock dam-break settings (Verlet, Wendland h = √2 dx,
+    α = 0.02, Fourtakas' density diffusion, DBC boundary, variable step at CFL 0.2) and our
+    sound speed; 2 OpenMP threads. Timed from its own log: the steps and wall time of the
+    output interval after a first (warm-up) interval of about ``steps`` steps. Its step is
+    its own CFL step, so per simulated second (``wall_per_sim_s``, both sides over the same
+    early interval of the flow) is the figure that counts both codes' step sizes; with
+    ``--front-dx`` both also run the whole Koshizuka & Oka window (T ≤ 2.75) at those dx and
+    report their front error next to their wall time (speed at equal accuracy): ours is run
+    twice in the process and timed the second time (``first_call_wall_s``: the first call,
+    with tracing and compilation or loading the compiled step from JAX's cache), the solver
+    as a whole process (its set-up is under 0.1 s).
+    ``--no-dsph`` leaves it out (the last figures in peers.json are kept).
 
 PySPH
     PySPH 1.0b2 from PyPI, built from source into its own virtual environment outside the
@@ -71,6 +90,8 @@ import tempfile
 import textwrap
 import time
 
+import numpy as np
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 RESULTS = os.path.join(HERE, "results")
@@ -80,8 +101,9 @@ DEFAULT_VENV = os.environ.get("FPSI_PEERS_VENV",
                               os.path.expanduser("~/.cache/fpsi-peers/pysph-venv"))
 PYSPH_SPEC = "pysph==1.0b2"
 
-# Peers that no registry installs: figures measured on this machine earlier (2D dam break,
-# particle-steps/s, particles = fluid + boundary). Not re-measured by this script.
+# Figures measured on this machine earlier (2D dam break, particle-steps/s, particles =
+# fluid + boundary), not re-measured by this script: JAX-SPH (no registry installs it), and
+# DualSPHysics from an earlier session, shown only where the live build did not run.
 FIXED_PEERS = {
     "DualSPHysics": {
         "version": "5.4", "mode": "CPU, 2 threads (OpenMP)", "precision": "float32/64 mixed",
@@ -390,6 +412,34 @@ def ours_run(dx, steps):
     return r
 
 
+# --- DualSPHysics ------------------------------------------------------------------------
+
+def dsph_run(dx, steps, threads):
+    """DualSPHysics on our particles at ``dx``: about ``steps`` warm-up steps (its first
+    output interval), then the next interval timed from its log."""
+    import dualsphysics
+    k = dualsphysics.case_particles(dx)[3]
+    dt0 = 0.2 * math.sqrt(2.0) * dx / k["c0"]       # its CFL step at rest (h = √2 dx)
+    t_out = steps * dt0
+    t0, c0, b0 = time.perf_counter(), os.times(), cpu_busy_s()
+    res = dualsphysics.run(dx, 2 * t_out * 1.0001, t_out, threads=threads)
+    t1, c1, b1 = time.perf_counter(), os.times(), cpu_busy_s()
+    own = (c1.children_user + c1.children_system) - (c0.children_user + c0.children_system)
+    part = next(p for p in res["parts"] if p["part"] == 2)
+    prev = next(p for p in res["parts"] if p["part"] == 1)
+    wall = part["wall_per_sim_s"] * (part["t"] - prev["t"])
+    n = res["case"]["n_particles"]
+    return {"dx": dx, "n_particles": n, "n_fluid": res["case"]["n_fluid"],
+            "n_boundary": res["case"]["n_boundary"], "steps": part["steps"],
+            "warmup_steps": prev["steps"], "wall_s": wall,
+            "particle_steps_per_s": n * part["steps"] / wall,
+            "dt_mean": (part["t"] - prev["t"]) / part["steps"],
+            "wall_per_sim_s": part["wall_per_sim_s"],
+            "other_load_cores": max(0.0, (b1 - b0 - own) / (t1 - t0)),
+            "other_load_over": "the whole solver process (set-up, warm-up, timed interval)",
+            "threads": threads, "command": res["command"], "settings": res["case"]}
+
+
 # --- comparison --------------------------------------------------------------------------
 
 def nearest_fixed(name, n):
@@ -424,6 +474,7 @@ def compare(row):
     ours, py = row.get("ours"), row.get("pysph")
     n = (ours or py or {}).get("n_particles") or row["target"]
     row["dualsphysics_fixed"] = nearest_fixed("DualSPHysics", n)
+    ds = row.get("dsph") or {}
     row["jaxsph_fixed"] = (nearest_fixed("JAX-SPH", n)
                            if n < 2 * FIXED_PEERS["JAX-SPH"]["rows"][-1]["n_particles"]
                            else None)
@@ -431,7 +482,12 @@ def compare(row):
     row["ratio_ours_over_pysph"] = (rate / py["particle_steps_per_s"]
                                     if rate and py and "particle_steps_per_s" in py else None)
     row["ratio_ours_over_dualsphysics"] = (
-        rate / row["dualsphysics_fixed"]["particle_steps_per_s"] if rate else None)
+        rate / ds["particle_steps_per_s"] if rate and ds.get("particle_steps_per_s") else None)
+    if ours and ours.get("dt") and rate:
+        ours["wall_per_sim_s"] = ours["n_particles"] / rate / ours["dt"]
+    row["sim_speed_ours_over_dualsphysics"] = (
+        ds["wall_per_sim_s"] / ours["wall_per_sim_s"]
+        if (ours or {}).get("wall_per_sim_s") and ds.get("wall_per_sim_s") else None)
     row["ratio_ours_over_jaxsph"] = (rate / row["jaxsph_fixed"]["particle_steps_per_s"]
                                      if rate and row["jaxsph_fixed"] else None)
     if (ours or {}).get("steps") and (py or {}).get("steps") and py["steps"] != ours["steps"]:
@@ -446,32 +502,47 @@ def fmt_m(x, loaded=False):
 def print_table(rows):
     print("\n2D dam break, particle-steps/s (fluid + boundary particles; best of the runs)")
     head = (f"{'size':>6} | {'ours N':>7} {'ours':>9} | {'PySPH N':>7} {'PySPH':>9} | "
-            f"{'ours/PySPH':>10} | {'DualSPH* N':>10} {'DualSPH*':>8} {'ours/DSPH':>9} | "
-            f"{'JAX-SPH* N':>10} {'JAX-SPH*':>8}")
+            f"{'ours/PySPH':>10} | {'DSPH N':>7} {'DSPH':>9} {'ours/DSPH':>9} | "
+            f"{'wall/sim-s ours':>15} {'DSPH':>7} | {'JAX-SPH* N':>10} {'JAX-SPH*':>8}")
     print(head)
     print("-" * len(head))
     for r in rows:
         o, p = r.get("ours") or {}, r.get("pysph") or {}
-        d, j = r["dualsphysics_fixed"], r["jaxsph_fixed"] or {}
+        d, j = r.get("dsph") or {}, r["jaxsph_fixed"] or {}
         ratio = r["ratio_ours_over_pysph"]
         rd = r["ratio_ours_over_dualsphysics"]
+        wo, wd = o.get("wall_per_sim_s"), d.get("wall_per_sim_s")
         print(f"{r['target']:>6} | {o.get('n_particles', '—'):>7} "
               f"{fmt_m(o.get('particle_steps_per_s'), o.get('loaded'))} | "
               f"{p.get('n_particles', '—'):>7} "
               f"{fmt_m(p.get('particle_steps_per_s'), p.get('loaded'))} | "
-              f"{(f'{ratio:.3f}' if ratio else '—'):>10} | {d['n_particles']:>10} "
-              f"{fmt_m(d['particle_steps_per_s'])} {(f'{rd:.3f}' if rd else '—'):>9} | "
+              f"{(f'{ratio:.3f}' if ratio else '—'):>10} | {d.get('n_particles', '—'):>7} "
+              f"{fmt_m(d.get('particle_steps_per_s'), d.get('loaded'))} "
+              f"{(f'{rd:.3f}' if rd else '—'):>9} | "
+              f"{(f'{wo:.1f} s' if wo else '—'):>15} {(f'{wd:.1f} s' if wd else '—'):>7} | "
               f"{j.get('n_particles', '—'):>10} {fmt_m(j.get('particle_steps_per_s'))}")
-        for side in ("ours", "pysph"):
+        for side in ("ours", "pysph", "dsph"):
             if (r.get(side) or {}).get("error"):
                 print(f"       {side} failed: {r[side]['error'].splitlines()[0]}")
         if r.get("warning"):
             print(f"       warning: {r['warning']}")
-    print("* fixed figures measured on this machine earlier (not re-run): DualSPHysics 5.4 "
-          "CPU 2 threads, JAX-SPH 0.1.0 float32")
-    if any((r.get(s) or {}).get("loaded") for r in rows for s in ("ours", "pysph")):
+    print("DSPH: DualSPHysics 5.4 CPU, 2 threads, built from source, on our particles "
+          "(its own CFL step); wall/sim-s: wall seconds per simulated second over the same "
+          "early interval; * fixed figure measured earlier: JAX-SPH 0.1.0 float32")
+    if any((r.get(s) or {}).get("loaded") for r in rows for s in ("ours", "pysph", "dsph")):
         print("~ every run at this size shared the machine with other processes "
               "(other_load_cores in peers.json): an underestimate, re-run when quiet")
+
+
+def print_front(front):
+    print("\nWhole K&O window (T <= 2.75), same particles: front error and wall time")
+    for r in front:
+        print(f"  {r['label']:30s} a/dx {r['a_over_dx']:5.1f}  worst vs K&O "
+              f"{100 * r['vs_ko']['worst']:+5.1f} % at T = {r['vs_ko']['T_worst']:.2f}  "
+              f"{r['steps']:>6} steps  wall {r['wall_s']:6.1f} s  "
+              f"({r['wall_per_sim_s']:.1f} s per simulated s"
+              + (f"; {r['first_call_wall_s']:.1f} s in the process's first call, with "
+                 "tracing and compilation" if "first_call_wall_s" in r else "") + ")")
 
 
 def plot(rows, path):
@@ -492,7 +563,12 @@ def plot(rows, path):
             if hollow:
                 ax.plot(*zip(*hollow), style[0], color=color, mfc="white", label=hollow_label)
                 hollow_label = "_nolegend_"
-    for name, style, color in (("DualSPHysics", "^--", "C2"), ("JAX-SPH", "v--", "C3")):
+    pts = sorted((r["dsph"]["n_particles"], r["dsph"]["particle_steps_per_s"])
+                 for r in rows if (r.get("dsph") or {}).get("particle_steps_per_s"))
+    if pts:
+        ax.plot(*zip(*pts), "^-", color="C2",
+                label="DualSPHysics 5.4 (built from source, OpenMP, 2 threads)")
+    for name, style, color in (("JAX-SPH", "v--", "C3"),):
         p = FIXED_PEERS[name]
         pts = [(q["n_particles"], q["particle_steps_per_s"]) for q in p["rows"]]
         ax.plot(*zip(*pts), style, color=color, alpha=0.7,
@@ -514,7 +590,7 @@ def plot(rows, path):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--sizes", type=int, nargs="+", default=[5000, 20000],
+    ap.add_argument("--sizes", type=int, nargs="*", default=[5000, 20000],
                     help="target particle counts (fluid + boundary); 80000 is optional")
     ap.add_argument("--steps", type=int, default=200,
                     help="timed steps on each side (after as many warm-up steps)")
@@ -542,8 +618,26 @@ def main():
                       help="measure us only; keep the PySPH figures of peers.json")
     side.add_argument("--pysph-only", action="store_true",
                       help="measure PySPH only; keep our figures of peers.json")
+    ap.add_argument("--no-dsph", action="store_true",
+                    help="leave DualSPHysics out (its last figures in peers.json are kept)")
+    ap.add_argument("--front-dx", type=float, nargs="*", default=[],
+                    help="also run ours and DualSPHysics over the whole K&O window at these "
+                         "dx: front error and wall time (e.g. 0.005 0.0025)")
     args = ap.parse_args()
     venv = os.path.abspath(os.path.expanduser(args.venv))
+    dsph_on = not (args.no_dsph or args.ours_only or args.pysph_only)
+    dsph_info = {}
+    if dsph_on:
+        import dualsphysics
+        try:
+            print("DualSPHysics: building from source if needed (~6 min once)", flush=True)
+            exe, _, secs = dualsphysics.build()
+            dsph_info = {"status": "built", "solver": exe, "build_s": round(secs, 1),
+                         "source": dualsphysics.REPO_URL}
+        except (dualsphysics.DsphError, OSError) as e:
+            dsph_on = False
+            dsph_info = {"status": "build failed", "error": str(e)}
+            print(f"\n*** DualSPHysics could not be built: {e}\n", flush=True)
     policies = [None if p == "default" else p for p in args.omp_wait_policy]
 
     cache = {}
@@ -552,8 +646,9 @@ def main():
             old = json.load(fh)
         cache = {r["target"]: r for r in old.get("sizes", [])}
         pysph_info = old.get("pysph", {})
+        old_dsph_info, old_front = old.get("dualsphysics", {}), old.get("front", [])
     else:
-        pysph_info = {}
+        pysph_info, old_dsph_info, old_front = {}, {}, []
 
     # PySPH: install, then one driver run per size
     pysph_ok = False
@@ -620,12 +715,52 @@ def main():
             except Exception as e:  # a bad run must not lose the peers' figures
                 row["ours"] = {"dx": dx, "error": f"{type(e).__name__}: {e}"}
                 print(f"    ours failed at size {target}: {e}", flush=True)
+        if dsph_on:
+            dx = (row.get("ours") or {}).get("dx") or our_dx_for(target)
+            print(f"[{target}] DualSPHysics dx={dx * 1e3:.4g} mm  N={our_count(dx)} "
+                  f"({args.repeat} × ~2 × {args.steps} steps)", flush=True)
+            try:
+                row["dsph"] = best_of([lambda: dsph_run(dx, args.steps, args.threads)],
+                                      args.repeat, args.wait_idle, args.quiet_load,
+                                      args.extra_tries)
+                d = row["dsph"]
+                print(f"    {d['particle_steps_per_s'] / 1e6:.2f} M particle-steps/s  "
+                      f"{d['steps']} steps in {d['wall_s']:.2f} s  others "
+                      f"{d['other_load_cores']:.2f} cores  {d['wall_per_sim_s']:.1f} s per "
+                      f"simulated s  runs "
+                      f"{[round(x / 1e6, 2) for x in d['all_runs_particle_steps_per_s']]} M",
+                      flush=True)
+            except Exception as e:
+                row["dsph"] = {"dx": dx, "error": f"{type(e).__name__}: {e}"}
+                print(f"    DualSPHysics failed at size {target}: {e}", flush=True)
         rows.append(compare(row))
 
     # keep sizes measured before and not asked for now
     done = {r["target"] for r in rows}
     rows += [compare(dict(r)) for t, r in cache.items() if t not in done]
     rows.sort(key=lambda r: r["target"])
+    front = []
+    if args.front_dx:
+        import dam_break_front_peers as fp
+        ko = fp.load("koshizuka_oka1996_surge_front.csv")
+        for dx in args.front_dx:
+            for fn in ([fp.run_ours] + ([fp.run_dsph] if dsph_on else [])):
+                wait_idle(args.wait_idle)
+                r = fn(dx)
+                if fn is fp.run_ours:  # the first call traces and loads the compiled step
+                    first = r["wall_s"]
+                    wait_idle(args.wait_idle)
+                    r = fn(dx)
+                    r["first_call_wall_s"] = first
+                T, Z = np.asarray(r.pop("T")), np.asarray(r.pop("Z"))
+                r["vs_ko"] = fp.errors(T, Z, ko)
+                r["vs_ko"].pop("at_points")
+                r["t_end"] = float(T[-1]) / math.sqrt(2 * 9.81 / (r["a_over_dx"] * dx))
+                r["wall_per_sim_s"] = r["wall_s"] / r["t_end"]
+                r.pop("dsph", None)
+                front.append(r)
+                print(f"    {r['label']}: {100 * r['vs_ko']['worst']:+.1f} % vs K&O, "
+                      f"{r['wall_s']:.1f} s", flush=True)
     out = {
         "generated": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
         "machine": machine_info(),
@@ -654,6 +789,8 @@ def main():
                      "wait_idle_s": args.wait_idle, "quiet_load_cores": args.quiet_load,
                      "extra_tries": args.extra_tries},
         "pysph": pysph_info,
+        "dualsphysics": dsph_info or old_dsph_info,
+        "front": front or old_front,
         "fixed_peers": FIXED_PEERS,
         "sizes": rows,
     }
@@ -661,6 +798,8 @@ def main():
     with open(OUT_JSON, "w") as fh:
         json.dump(out, fh, indent=1)
     print_table(rows)
+    if front:
+        print_front(front)
     try:
         plot(rows, OUT_PNG)
     except Exception as e:  # the plot is a convenience
