@@ -16,10 +16,11 @@ is the per-simulated-time figure to compare at equal a/dx.
 
 Writes experiments/results/dam_break_front_peers.{json,csv,png}.
 
-Front definition, both codes: Z = (x_max + dx/2 - x_wall)/a_eff with x_max the rightmost
+Front definition, every code: Z = (x_max + dx/2 - x_wall)/a_eff with x_max the rightmost
 fluid particle centre, x_wall the wall face (half a spacing in front of the first boundary
-layer) and a_eff the initial column width measured the same way, so Z(0) = 1 exactly;
-T = t sqrt(2 g / a_eff). Ours: x_wall = 0 and a_eff = column_width. PySPH's stock column
+layer) and a_eff the initial column width; T = t sqrt(2 g / a_eff). Ours and DualSPHysics
+(the same particles): x_wall = 0 and a_eff = column_width, the nominal 0.146 m (the lattice
+column at dx = 5 and 2.5 mm is 0.145 m wide, so Z(0) = 0.993). PySPH's stock column
 starts one spacing from the wall layer at x = 0, so x_wall = dx/2 and a_eff = x_max(0);
 PySPH's own post-processing (x_max / 1 m against t sqrt(2 g / 1 m)) is recorded too.
 PySPH is run with the stock settings (WCSPH: alpha = 0.1, h = 1.3 dx, adaptive dt; EDAC

@@ -17,21 +17,24 @@ Build (once, ~8 min on 2 cores; cached under ~/.cache/fpsi-peers/dualsphysics, o
 Case
     DualSPHysics' pre-processor GenCase is distributed as a binary only, so the particles
     are laid out here: our ``dam_break`` builder's lattice at the given dx (fluid column,
-    three layers of boundary particles on the walls and the floor: the same particles on
-    both sides), written into the solver's case file by ``dualsphysics/fpsi_dsph_io.cpp``
+    three layers of boundary particles on the walls and the floor, whose spacing the builder
+    fits to the tank, 4.99 mm at dx = 5 mm: the same particles on both sides), written into the solver's case file by ``dualsphysics/fpsi_dsph_io.cpp``
     with the solver's own writer (JPartDataBi4), and the case's XML written below. The
     solver's settings are those of its stock 2D dam break (examples/main/01_DamBreak,
     CaseDambreakVal2D): Wendland kernel with h = √2·dp (coefh 1), Verlet stepping (a Euler
     step every 40), artificial viscosity α = 0.02, Fourtakas' density diffusion δ = 0.1,
     dynamic boundary particles (DBC), variable step at CFL 0.2. The sound speed is ours
-    (B = ρ0 c0²/γ with our builder's c0), the fluid starts at our hydrostatic densities, the
-    boundary at ρ0; masses ρ0 dx².
+    (B = ρ0 c0²/γ with our builder's c0 = 10 √(2gH) = 23.9 m/s, 0.71× the stock case's
+    20 √(gH), so its step is 1.4× what its stock settings would take), the fluid starts at
+    our hydrostatic densities, the boundary at ρ0; the masses are ours (ρ0 dx², and ρ0 dx_b²
+    for the boundary).
 
 Run and read-back
-    ``DualSPHysics5.4CPU_linux64 <case> <out> -cpu -ompthreads=2 -svres`` on an otherwise
-    idle machine; Run.out gives the steps, the runtime and the runtime per simulated second
-    (its Part lines give them per output interval, so the first interval can be left out as
-    warm-up); the output parts are read back with ``fpsi_dsph_io dump``.
+    ``DualSPHysics5.4CPU_linux64 <case> <out> -cpu -ompthreads:2 -svres`` on an otherwise
+    idle machine; Run.out gives the steps and runtimes of the whole run, RunPARTs.csv the
+    steps and wall time of each output interval (so the first can be left out as warm-up;
+    its timer stops before the interval's part file is written); the output parts are read
+    back with ``fpsi_dsph_io dump``.
 """
 from __future__ import annotations
 
@@ -125,7 +128,11 @@ def case_particles(dx):
     xf = np.asarray(scene.fluid.x, dtype=float)
     rho = np.asarray(scene.fluid.rho, dtype=float)
     g = float(-np.asarray(scene.params.gravity)[1])
+    mb = np.asarray(scene.boundary.mass, dtype=float)
+    if np.ptp(mb) > 1e-6 * mb.max():
+        raise DsphError("the boundary particles' masses differ; DualSPHysics takes one")
     return xb, xf, rho, {"rho0": float(kw["rho0"]), "c0": float(kw["c0"]), "g": g,
+                         "mass_boundary": float(mb[0]),
                          "column_width": float(kw["column_width"]), "n_fluid": len(xf),
                          "n_boundary": len(xb)}
 
@@ -145,10 +152,11 @@ def write_case(workdir, tool, dx, t_end, t_out, alpha=0.02, cfl=0.2, coefh=1.0, 
     h = float(coefh * np.sqrt(2.0) * dx)
     b = rho0 * c0 ** 2 / gamma
     mass = rho0 * dx ** 2
+    mass_b = k["mass_boundary"]
     nb, nf = len(xb), len(xf)
     txt = os.path.join(workdir, "particles.txt")
     with open(txt, "w") as fh:
-        fh.write(f"{nb + nf} {nb} {nf} {dx!r} {h!r} {b!r} {rho0!r} {gamma!r} {mass!r} "
+        fh.write(f"{nb + nf} {nb} {nf} {dx!r} {h!r} {b!r} {rho0!r} {gamma!r} {mass_b!r} "
                  f"{mass!r}\n")
         np.savetxt(fh, np.c_[xb, np.zeros((nb, 2)), np.full(nb, rho0)], fmt="%.9g")
         np.savetxt(fh, np.c_[xf, np.zeros((nf, 2)), rho], fmt="%.9g")
@@ -167,7 +175,7 @@ def write_case(workdir, tool, dx, t_end, t_out, alpha=0.02, cfl=0.2, coefh=1.0, 
       <dp value="{dx!r}" />
       <h value="{h!r}" />
       <b value="{b!r}" />
-      <massbound value="{mass!r}" />
+      <massbound value="{mass_b!r}" />
       <massfluid value="{mass!r}" />
     </constants>
     <particles np="{nb + nf}" nb="{nb}" nbf="{nb}" mkboundfirst="11" mkfluidfirst="1">
@@ -200,16 +208,10 @@ def _int(s):
 
 
 def parse_run_out(path):
-    """Run.out: the Part lines (part, time, total steps, steps, Time/Sec) and the summary."""
-    parts, summary = [], {}
+    """Run.out's summary: runtimes, steps per second, steps, excluded particles."""
+    summary = {}
     with open(path, errors="replace") as fh:
         for line in fh:
-            m = re.match(r"^(\d{5})\s+([\d.]+)\s+([\d,.]+)\s+([\d,.]+)\s+([\d,.]+)\s+([\d,.]+)"
-                         r"\s+([\d.eE+-]+)\s", line)
-            if m:
-                parts.append({"part": int(m[1]), "t": float(m[2]), "total_steps": _int(m[3]),
-                              "steps": _int(m[4]), "n": _int(m[5]),
-                              "wall_per_sim_s": float(m[7])})
             for key, name in (("Total Runtime", "total_runtime_s"),
                               ("Simulation Runtime", "simulation_runtime_s"),
                               ("Runtime per physical second", "runtime_per_sim_s"),
@@ -220,7 +222,21 @@ def parse_run_out(path):
                 summary["steps"] = _int(line.split(":")[-1].strip())
             if line.startswith("Excluded particles."):
                 summary["excluded"] = _int(line.split(":")[-1].strip())
-    return parts, summary
+    return summary
+
+
+def parse_parts(path):
+    """RunPARTs.csv: per output interval its end time, steps and wall time (``PartRuntime``,
+    whose timer stops before the part's file is written; full precision, unlike Run.out's
+    Part lines)."""
+    with open(path, errors="replace") as fh:
+        head = fh.readline().strip().split(";")
+        rows = [line.strip().split(";") for line in fh
+                if line.strip() and not line.startswith("#")]   # notes follow the table
+    col = {name: k for k, name in enumerate(head)}
+    return [{"part": int(r[col["Part"]]), "t": float(r[col["TimeStep [s]"]]),
+             "steps": _int(r[col["Steps"]]), "wall_s": float(r[col["PartRuntime [s]"]])}
+            for r in rows]
 
 
 def run(dx, t_end, t_out, threads=2, home=DEFAULT_HOME, keep=None, read_parts=False, **kw):
@@ -240,7 +256,8 @@ def run(dx, t_end, t_out, threads=2, home=DEFAULT_HOME, keep=None, read_parts=Fa
     if r.returncode != 0 or not os.path.exists(run_out):
         raise DsphError(f"DualSPHysics failed (exit {r.returncode}): "
                         f"{(r.stdout + r.stderr)[-2000:]}")
-    parts, summary = parse_run_out(run_out)
+    summary = parse_run_out(run_out)
+    parts = parse_parts(os.path.join(out, "RunPARTs.csv"))
     res = {"case": case, "t_end": t_end, "t_out": t_out, "threads": threads,
            "process_wall_s": wall, "parts": parts, **summary,
            "command": " ".join([EXE_NAME, "dambreak", "out", *cmd[3:]])}
@@ -268,19 +285,6 @@ def fronts(tool, out, n_boundary):
         rows.append((t, float(fluid[:, 1].max())))
         os.remove(txt)
     return rows
-
-
-def window_rate(parts, skip=1):
-    """Steps and wall seconds over the Part lines after the first ``skip`` (warm-up)."""
-    use = [p for p in parts if p["part"] > skip]
-    if len(use) < 1:
-        return None
-    prev = {p["part"]: p for p in parts}
-    steps = sum(p["steps"] for p in use)
-    wall = sum(p["wall_per_sim_s"] * (p["t"] - prev[p["part"] - 1]["t"]) for p in use
-               if p["part"] - 1 in prev)
-    return {"steps": steps, "wall_s": wall, "steps_per_s": steps / wall if wall else None,
-            "sim_s": use[-1]["t"] - prev[use[0]["part"] - 1]["t"]}
 
 
 def main():

@@ -19,15 +19,17 @@ DualSPHysics
     on our own particles at our dx (GenCase is published as a binary only; the same
     particles on both sides), with its stock dam-break settings (Verlet, Wendland h = √2 dx,
     α = 0.02, Fourtakas' density diffusion, DBC boundary, variable step at CFL 0.2) and our
-    sound speed; 2 OpenMP threads. Timed from its own log: the steps and wall time of the
-    output interval after a first (warm-up) interval of about ``steps`` steps. Its step is
-    its own CFL step, so per simulated second (``wall_per_sim_s``, both sides over the same
-    early interval of the flow) is the figure that counts both codes' step sizes; with
+    sound speed; 2 OpenMP threads. Timed from its own RunPARTs.csv: the steps and wall time
+    of the output interval after a first (warm-up) interval of about ``steps`` steps. Its
+    step is its own CFL step, so per simulated second (``wall_per_sim_s``: both sides early
+    in the flow, where its step is ≈ 0.2 h/c0 and ours 0.875 h/(c0 + |v|)) is the figure
+    that counts both codes' step sizes; with
     ``--front-dx`` both also run the whole Koshizuka & Oka window (T ≤ 2.75) at those dx and
     report their front error next to their wall time (speed at equal accuracy): ours is run
     twice in the process and timed the second time (``first_call_wall_s``: the first call,
     with tracing and compilation or loading the compiled step from JAX's cache), the solver
-    as a whole process (its set-up is under 0.1 s).
+    as a whole process (its set-up is under 0.1 s; the wall includes writing the ~56 part
+    files its front is read from, while ours observes in memory).
     ``--no-dsph`` leaves it out (the last figures in peers.json are kept).
 
 PySPH
@@ -416,7 +418,7 @@ def ours_run(dx, steps):
 
 def dsph_run(dx, steps, threads):
     """DualSPHysics on our particles at ``dx``: about ``steps`` warm-up steps (its first
-    output interval), then the next interval timed from its log."""
+    output interval), then the next interval timed from its RunPARTs.csv."""
     import dualsphysics
     k = dualsphysics.case_particles(dx)[3]
     dt0 = 0.2 * math.sqrt(2.0) * dx / k["c0"]       # its CFL step at rest (h = √2 dx)
@@ -427,14 +429,14 @@ def dsph_run(dx, steps, threads):
     own = (c1.children_user + c1.children_system) - (c0.children_user + c0.children_system)
     part = next(p for p in res["parts"] if p["part"] == 2)
     prev = next(p for p in res["parts"] if p["part"] == 1)
-    wall = part["wall_per_sim_s"] * (part["t"] - prev["t"])
+    wall = part["wall_s"]
     n = res["case"]["n_particles"]
     return {"dx": dx, "n_particles": n, "n_fluid": res["case"]["n_fluid"],
             "n_boundary": res["case"]["n_boundary"], "steps": part["steps"],
             "warmup_steps": prev["steps"], "wall_s": wall,
             "particle_steps_per_s": n * part["steps"] / wall,
             "dt_mean": (part["t"] - prev["t"]) / part["steps"],
-            "wall_per_sim_s": part["wall_per_sim_s"],
+            "wall_per_sim_s": wall / (part["t"] - prev["t"]), "t_timed": [prev["t"], part["t"]],
             "other_load_cores": max(0.0, (b1 - b0 - own) / (t1 - t0)),
             "other_load_over": "the whole solver process (set-up, warm-up, timed interval)",
             "threads": threads, "command": res["command"], "settings": res["case"]}
@@ -527,8 +529,8 @@ def print_table(rows):
         if r.get("warning"):
             print(f"       warning: {r['warning']}")
     print("DSPH: DualSPHysics 5.4 CPU, 2 threads, built from source, on our particles "
-          "(its own CFL step); wall/sim-s: wall seconds per simulated second over the same "
-          "early interval; * fixed figure measured earlier: JAX-SPH 0.1.0 float32")
+          "(its own CFL step); wall/sim-s: wall seconds per simulated second early in the "
+          "flow; * fixed figure measured earlier: JAX-SPH 0.1.0 float32")
     if any((r.get(s) or {}).get("loaded") for r in rows for s in ("ours", "pysph", "dsph")):
         print("~ every run at this size shared the machine with other processes "
               "(other_load_cores in peers.json): an underestimate, re-run when quiet")
@@ -757,7 +759,10 @@ def main():
                 r["vs_ko"].pop("at_points")
                 r["t_end"] = float(T[-1]) / math.sqrt(2 * 9.81 / (r["a_over_dx"] * dx))
                 r["wall_per_sim_s"] = r["wall_s"] / r["t_end"]
-                r.pop("dsph", None)
+                d = r.pop("dsph", None)
+                if d:       # the solver's own runtimes: its set-up is the difference
+                    r.update({k: d[k] for k in ("total_runtime_s", "simulation_runtime_s",
+                                                "command") if k in d})
                 front.append(r)
                 print(f"    {r['label']}: {100 * r['vs_ko']['worst']:+.1f} % vs K&O, "
                       f"{r['wall_s']:.1f} s", flush=True)
