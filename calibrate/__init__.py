@@ -6,6 +6,6 @@
 
 Modules: ``space`` (which parameters, transformed space), ``targets`` (reference data →
 residuals), ``rollout`` (checkpointed differentiable rollouts), ``fit`` (optax loop,
-Gauss–Newton errors, JSON, plot), ``batch`` (vmapped and sharded parameter sweeps),
-``cases`` (ready-made problems), ``cli`` (``fpsi calibrate``).
+Gauss–Newton errors, JSON, plot), ``batch`` (parameter sweeps in one compiled call,
+sharded over devices), ``cases`` (ready-made problems), ``cli`` (``fpsi calibrate``).
 """

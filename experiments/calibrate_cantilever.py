@@ -12,7 +12,7 @@
 * damping    the strip at d = 1.25 mm, free vibration: c so the first mode decays with a
              damping ratio of 5 % within 5 %; compared with the analytic c = 4π f1 ζ
 * landscape  16 stiffness and 16 damping values around the synthetic optimum, each set in
-             one vmapped call (batched over parameter sets)
+             one compiled call (batch.landscape: the sets in sequence inside it)
 Writes experiments/results/calibrate_cantilever.json and calibrate_cantilever_*.png.
 """
 from __future__ import annotations
@@ -45,7 +45,7 @@ def synthetic(adam=False):
              title="Cantilever, synthetic truth: stiffness ×2, damping ×3 → recovered")
     out = {"meta": case.meta, "truth": case.truth, "setup_s": setup_s, "fit": res.to_json(),
            "rel_error": {k: res.best[k] / case.truth[k] - 1 for k in case.truth}}
-    # loss landscape: 16 values of each quantity in one vmapped call
+    # loss landscape: 16 values of each quantity in one compiled call
     curves = {}
     for name, lo, hi in (("stiffness", 0.8, 1.25), ("dem.damping", 2.0, 8.0)):
         t1 = time.perf_counter()

@@ -1,5 +1,6 @@
-"""calibrate.batch: a vmapped batch of parameter sets gives the same losses as one-by-one
-calls, and the same batched code runs sharded over two (forced host) devices."""
+"""calibrate.batch: a batch of parameter sets, run in sequence inside one compiled call
+(the default) or vectorised, gives the same losses as one-by-one calls, sharded over two
+(forced host) devices or not."""
 import json
 import os
 import subprocess
@@ -27,14 +28,18 @@ space = sp.ParamSpace(pr.params, [sp.stiffness(0.25, 4.0)])
 cal = Calibration(pr, space, [StaticDeflection(value=-1e-4)])
 vals, losses, used = batch.landscape(cal, space.z0, "stiffness", np.geomspace(0.5, 2.0, 4))
 _, unsharded, used1 = batch.landscape(cal, space.z0, "stiffness", vals, shard=False)
+_, vec, used_v = batch.landscape(cal, space.z0, "stiffness", vals, vectorize=True)
+_, vec1, _ = batch.landscape(cal, space.z0, "stiffness", vals, shard=False, vectorize=True)
 single = [float(cal.value(space.z_of({"stiffness": v}))[0]) for v in vals]
 print(json.dumps({"devices": jax.device_count(), "used": used, "batched": losses.tolist(),
                   "unsharded": unsharded.tolist(), "used_unsharded": used1,
+                  "vectorized": vec.tolist(), "used_vectorized": used_v,
+                  "vectorized_unsharded": vec1.tolist(),
                   "single": single}))
 """
 
 
-def test_batched_losses_match_single_calls_sharded_or_not():
+def test_batched_losses_match_single_calls_in_sequence_or_vectorised_sharded_or_not():
     n_dev = 2
     env = dict(os.environ, PYTHONPATH=ROOT, JAX_PLATFORMS="cpu",
                XLA_FLAGS=f"--xla_force_host_platform_device_count={n_dev}")
@@ -46,4 +51,7 @@ def test_batched_losses_match_single_calls_sharded_or_not():
     assert rec["used_unsharded"] == 1
     np.testing.assert_allclose(rec["batched"], rec["single"], rtol=1e-10)
     np.testing.assert_allclose(rec["unsharded"], rec["single"], rtol=1e-10)
+    assert rec["used_vectorized"] == n_dev
+    np.testing.assert_allclose(rec["vectorized"], rec["single"], rtol=1e-10)
+    np.testing.assert_allclose(rec["vectorized_unsharded"], rec["single"], rtol=1e-10)
     assert np.all(np.diff(rec["batched"]) != 0)      # the loss does vary along the sweep
