@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 
 # The main job: simulate the flagship case, write HDF5 + XDMF + a plot against experiment.
 run: $(STAMP)
-	$(VENV)/bin/fpsi run elastic_gate --out results/elastic_gate.h5 --every 0.01 --plot
+	$(VENV)/bin/fpsi run elastic_gate --out results/elastic_gate.h5 --every 0.01 --plot --overwrite
 
 # The default test suite (long validation runs are marked slow and run in experiments/).
 test: $(STAMP)
