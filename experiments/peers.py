@@ -104,15 +104,8 @@ DEFAULT_VENV = os.environ.get("FPSI_PEERS_VENV",
 PYSPH_SPEC = "pysph==1.0b2"
 
 # Figures measured on this machine earlier (2D dam break, particle-steps/s, particles =
-# fluid + boundary), not re-measured by this script: JAX-SPH (no registry installs it), and
-# DualSPHysics from an earlier session, shown only where the live build did not run.
+# fluid + boundary), not re-measured by this script: JAX-SPH, which no registry installs.
 FIXED_PEERS = {
-    "DualSPHysics": {
-        "version": "5.4", "mode": "CPU, 2 threads (OpenMP)", "precision": "float32/64 mixed",
-        "rows": [{"n_particles": 5500, "particle_steps_per_s": 3.69e6},
-                 {"n_particles": 21000, "particle_steps_per_s": 3.70e6},
-                 {"n_particles": 82000, "particle_steps_per_s": 3.95e6}],
-        "note": "fixed figures measured earlier on this machine (not re-run by this script)"},
     "JAX-SPH": {
         "version": "0.1.0", "mode": "JAX CPU", "precision": "float32",
         "rows": [{"n_particles": 7000, "particle_steps_per_s": 0.27e6},
@@ -475,7 +468,7 @@ def best_of(fns, repeat, wait, quiet_load, extra):
 def compare(row):
     ours, py = row.get("ours"), row.get("pysph")
     n = (ours or py or {}).get("n_particles") or row["target"]
-    row["dualsphysics_fixed"] = nearest_fixed("DualSPHysics", n)
+    row.pop("dualsphysics_fixed", None)
     ds = row.get("dsph") or {}
     row["jaxsph_fixed"] = (nearest_fixed("JAX-SPH", n)
                            if n < 2 * FIXED_PEERS["JAX-SPH"]["rows"][-1]["n_particles"]
@@ -649,13 +642,16 @@ def main():
         cache = {r["target"]: r for r in old.get("sizes", [])}
         pysph_info = old.get("pysph", {})
         old_dsph_info, old_front = old.get("dualsphysics", {}), old.get("front", [])
+        old_machine, old_settings = old.get("machine"), old.get("settings")
     else:
         pysph_info, old_dsph_info, old_front = {}, {}, []
+        old_machine = old_settings = None
+    measured = bool(args.sizes or args.front_dx)   # else: the table is rewritten only
 
     # PySPH: install, then one driver run per size
     pysph_ok = False
     if not args.ours_only:
-        pysph_info = {"venv": venv, "spec": PYSPH_SPEC, "install_steps":
+        pysph_info = {**pysph_info, "venv": venv, "spec": PYSPH_SPEC, "install_steps":
                       [" ".join(["pip"] + s) for s in INSTALL_STEPS]}
         try:
             if args.skip_install:
@@ -768,7 +764,7 @@ def main():
                       f"{r['wall_s']:.1f} s", flush=True)
     out = {
         "generated": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
-        "machine": machine_info(),
+        "machine": machine_info() if measured else old_machine,
         "case": "2D dam break, same number of steps on both sides, particle count matched "
                 "(fluid + boundary particles)",
         "ours_case": "cases.dam_break (Koshizuka & Oka: 0.146 × 0.292 m column, 0.584 m "
@@ -789,7 +785,7 @@ def main():
                  "`repeat` runs per side (PySPH: each with every OMP_WAIT_POLICY of "
                  "settings); other_load_cores = cores other processes used "
                  "during a run (shared machine), cpu_over_wall = cores PySPH got.",
-        "settings": {"steps": args.steps, "repeat": args.repeat, "threads": args.threads,
+        "settings": old_settings if not measured else {"steps": args.steps, "repeat": args.repeat, "threads": args.threads,
                      "omp_wait_policies": args.omp_wait_policy,
                      "wait_idle_s": args.wait_idle, "quiet_load_cores": args.quiet_load,
                      "extra_tries": args.extra_tries},
