@@ -5,7 +5,7 @@
 Used by ``peers.py`` (per step and per simulated second) and ``dam_break_front_peers.py``
 (the front against Koshizuka & Oka). What it does:
 
-Build (once, ~8 min on 2 cores; cached under ~/.cache/fpsi-peers/dualsphysics, or
+Build (once, ~6 min on 2 cores; cached under ~/.cache/fpsi-peers/dualsphysics, or
 ``$FPSI_DSPH_HOME``)
     The source is ``git clone --depth 1 https://github.com/DualSPHysics/DualSPHysics`` (or an
     existing tree: ``--dsph-src`` / ``$FPSI_DSPH_SRC``). Its CPU solver is compiled with the
@@ -18,13 +18,14 @@ Case
     DualSPHysics' pre-processor GenCase is distributed as a binary only, so the particles
     are laid out here: our ``dam_break`` builder's lattice at the given dx (fluid column,
     three layers of boundary particles on the walls and the floor, whose spacing the builder
-    fits to the tank, 4.99 mm at dx = 5 mm: the same particles on both sides), written into the solver's case file by ``dualsphysics/fpsi_dsph_io.cpp``
-    with the solver's own writer (JPartDataBi4), and the case's XML written below. The
+    fits to the tank, 4.99 mm at dx = 5 mm: the same particles on both sides), written into
+    the solver's case file by ``dualsphysics/fpsi_dsph_io.cpp`` with the solver's own writer
+    (JPartDataBi4), and the case's XML written below. The
     solver's settings are those of its stock 2D dam break (examples/main/01_DamBreak,
     CaseDambreakVal2D): Wendland kernel with h = √2·dp (coefh 1), Verlet stepping (a Euler
     step every 40), artificial viscosity α = 0.02, Fourtakas' density diffusion δ = 0.1,
     dynamic boundary particles (DBC), variable step at CFL 0.2. The sound speed is ours
-    (B = ρ0 c0²/γ with our builder's c0 = 10 √(2gH) = 23.9 m/s, 0.71× the stock case's
+    (B = ρ0 c0²/γ with our builder's c0 = 10 √(2gH), 23.9 m/s: 0.71× the stock case's
     20 √(gH), so its step is 1.4× what its stock settings would take), the fluid starts at
     our hydrostatic densities, the boundary at ρ0; the masses are ours (ρ0 dx², and ρ0 dx_b²
     for the boundary).
@@ -44,7 +45,6 @@ import os
 import re
 import shutil
 import subprocess
-import sys
 import tempfile
 import time
 
@@ -85,15 +85,17 @@ def source_tree(home=DEFAULT_HOME, src=None):
 
 
 def build(home=DEFAULT_HOME, src=None, jobs=2):
-    """Compile the CPU solver and the case tool once; returns (solver, tool, build_seconds)."""
+    """Compile the CPU solver once, and the case tool when missing or older than its source;
+    returns (solver, tool, build_seconds)."""
     exe = os.path.join(home, "bin", EXE_NAME)
     tool = os.path.join(home, "bin", "fpsi_dsph_io")
     t0 = time.perf_counter()
-    if not os.path.exists(exe) or not os.path.exists(tool):
-        tree = source_tree(home, src)
+    stale = (not os.path.exists(tool)
+             or os.path.getmtime(tool) < os.path.getmtime(IO_SOURCE))   # the tool was edited
+    if not os.path.exists(exe) or stale:
         build_src = os.path.join(home, "build", "src", "source")
         if not os.path.isdir(build_src):
-            shutil.copytree(os.path.join(tree, "src", "source"), build_src)
+            shutil.copytree(os.path.join(source_tree(home, src), "src", "source"), build_src)
         os.makedirs(os.path.dirname(exe), exist_ok=True)
         log = os.path.join(home, "build.log")
         if not os.path.exists(exe):
@@ -110,11 +112,6 @@ def build(home=DEFAULT_HOME, src=None, jobs=2):
         if r.returncode != 0:
             raise DsphError(f"fpsi_dsph_io build failed: {r.stderr[-1500:]}")
     return exe, tool, time.perf_counter() - t0
-
-
-def built(home=DEFAULT_HOME):
-    return (os.path.exists(os.path.join(home, "bin", EXE_NAME))
-            and os.path.exists(os.path.join(home, "bin", "fpsi_dsph_io")))
 
 
 # --- case --------------------------------------------------------------------------------
