@@ -115,7 +115,8 @@ def run_ours(dx):
     return {"code": "fpsi-jax", "label": f"fpsi-jax dx {dx * 1e3:g} mm", "dx": dx,
             "a_over_dx": a / dx, "n_particles": scene.n_particles, "steps": res.n_steps,
             "wall_s": wall, "driver_wall_s": res.wall_s,
-            "compile_and_first_chunk_s": res.compile_s, "T": np.r_[0.0, T].tolist(), "Z": np.r_[1.0, Z].tolist()}
+            "compile_and_first_chunk_s": res.compile_s, "T": np.r_[0.0, T].tolist(),
+            "Z": np.r_[1.0, Z].tolist()}
 
 
 def run_pysph(venv, scheme, dx, threads=2):
@@ -264,7 +265,8 @@ def main():
     slim = [{k: v for k, v in r.items() if k not in ("T", "Z", "stock_T", "stock_Z")}
             for r in runs]
     with open(os.path.join(RESULTS, "dam_break_front_peers.json"), "w") as fh:
-        json.dump({"generated": time.strftime("%Y-%m-%d %H:%M:%S"), "pysph": pysph_status, "dualsphysics": dsph_status,
+        json.dump({"generated": time.strftime("%Y-%m-%d %H:%M:%S"), "pysph": pysph_status,
+                   "dualsphysics": dsph_status,
                    "front_definition": "Z = (x_max + dx/2 - x_wall)/a_eff, T = t sqrt(2g/a_eff)",
                    "window": f"0 < T <= {T_MAX} (K&O), T <= 3 (M&M)", "runs": slim}, fh,
                   indent=1)

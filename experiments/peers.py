@@ -28,7 +28,7 @@ DualSPHysics
     report their front error next to their wall time (speed at equal accuracy): ours is run
     twice in the process and timed the second time (``first_call_wall_s``: the first call,
     with tracing and compilation or loading the compiled step from JAX's cache), the solver
-    as a whole process (its set-up is under 0.1 s; the wall includes writing the ~56 part
+    as a whole process (its set-up takes milliseconds; the wall includes writing the ~56 part
     files its front is read from, while ours observes in memory).
     ``--no-dsph`` leaves it out (the last figures in peers.json are kept).
 
@@ -785,10 +785,10 @@ def main():
                  "`repeat` runs per side (PySPH: each with every OMP_WAIT_POLICY of "
                  "settings); other_load_cores = cores other processes used "
                  "during a run (shared machine), cpu_over_wall = cores PySPH got.",
-        "settings": old_settings if not measured else {"steps": args.steps, "repeat": args.repeat, "threads": args.threads,
-                     "omp_wait_policies": args.omp_wait_policy,
-                     "wait_idle_s": args.wait_idle, "quiet_load_cores": args.quiet_load,
-                     "extra_tries": args.extra_tries},
+        "settings": old_settings if not measured else {
+            "steps": args.steps, "repeat": args.repeat, "threads": args.threads,
+            "omp_wait_policies": args.omp_wait_policy, "wait_idle_s": args.wait_idle,
+            "quiet_load_cores": args.quiet_load, "extra_tries": args.extra_tries},
         "pysph": pysph_info,
         "dualsphysics": dsph_info or old_dsph_info,
         "front": front or old_front,
