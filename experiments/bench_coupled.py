@@ -103,7 +103,7 @@ def interleaved_ms(fns, state, steps, reps):
 
 
 def bench(name, warm, steps, reps, profile, wall_rows=False, walls_apart=False,
-          wall_widths=()):
+          wall_widths=(), k_extra=()):
     scene = cases.build(name, t_end=warm)
     state = simulate(scene, progress=False).state
     phys, params = setup(scene)
@@ -146,6 +146,17 @@ def bench(name, warm, steps, reps, profile, wall_rows=False, walls_apart=False,
             ph = dataclasses.replace(phys, neighbors=dataclasses.replace(cfg, wall_width=w))
             fns[w] = _loop(lambda i, s, ph=ph: solver.step(ph, s, p), steps)
         row["step_ms_at_wall_width"] = interleaved_ms(fns, state, steps, reps)
+    if k_extra:
+        # the same state with the SPH list allocated wider (min_neighbors raised): what a
+        # slot of the list's width K costs the step
+        fns = {}
+        for extra in k_extra:
+            c = dataclasses.replace(cfg, min_neighbors=row["sph_capacity"] + extra)
+            nb = neighbors.allocate(c, x0)
+            ph = dataclasses.replace(phys, neighbors=c)
+            fns[int(nb.idx.shape[1])] = (_loop(lambda i, s, ph=ph: solver.step(ph, s, p), steps),
+                                         state.replace(nbrs=nb))
+        row["step_ms_at_K"] = interleaved_ms(fns, state, steps, reps)
     if walls_apart and state.walls is not None:
         # the same chunks from a state whose walls are always evaluated (apart=None)
         always = state.replace(walls=state.walls.replace(apart=None))
@@ -170,6 +181,9 @@ def main():
                     help="A/B: wall rows at their measured width against all K slots")
     ap.add_argument("--wall-widths", nargs="*", type=int, default=[],
                     help="A/B: the whole step at each of these wall-row widths")
+    ap.add_argument("--k-extra", nargs="*", type=int, default=[],
+                    help="A/B: the whole step with the SPH list this many slots wider "
+                         "(0 = as allocated)")
     ap.add_argument("--walls-apart", action="store_true",
                     help="A/B: DEM wall contacts skipped while no disc can touch a wall "
                          "against evaluated every sub-step")
@@ -178,7 +192,7 @@ def main():
     rows = []
     for name in args.cases:
         r = bench(name, args.warm, args.steps, args.reps, args.profile, args.wall_rows,
-                  args.walls_apart, args.wall_widths)
+                  args.walls_apart, args.wall_widths, args.k_extra)
         rows.append(r)
         print(f"{name}: step {r['step_ms']:.2f} ms; DEM {r['discs_ms']:.2f} ms "
               f"({r['dem_substeps']} sub-steps of {r['substep_us']:.0f} us, "
@@ -192,6 +206,9 @@ def main():
         if "step_ms_at_wall_width" in r:
             print("    step at wall-row width " + ", ".join(
                 f"{w}: {ms:.2f} ms" for w, ms in r["step_ms_at_wall_width"].items()), flush=True)
+        if "step_ms_at_K" in r:
+            print("    step at list width " + ", ".join(
+                f"K = {k}: {ms:.2f} ms" for k, ms in r["step_ms_at_K"].items()), flush=True)
         if "step_ms_walls_skipped" in r:
             print(f"    walls apart {r['walls_apart_at_start']} -> {r['walls_apart_in_chunk']}: "
                   f"step {r['step_ms_walls_skipped']:.2f} against "
