@@ -183,7 +183,7 @@ def main():
                     help="A/B: the whole step at each of these wall-row widths")
     ap.add_argument("--k-extra", nargs="*", type=int, default=[],
                     help="A/B: the whole step with the SPH list this many slots wider "
-                         "(0 = as allocated)")
+                         "(0: reallocated at the state's own width)")
     ap.add_argument("--walls-apart", action="store_true",
                     help="A/B: DEM wall contacts skipped while no disc can touch a wall "
                          "against evaluated every sub-step")

@@ -201,7 +201,7 @@ def main():
                     help="scheme:dx pairs")
     ap.add_argument("--no-pysph", action="store_true")
     ap.add_argument("--dsph-dx", type=float, nargs="*", default=[0.005, 0.0025],
-                    help="DualSPHysics runs (built from source on first use: ~6-8 min)")
+                    help="DualSPHysics runs (built from source on first use: ~6 min)")
     ap.add_argument("--venv", default=peers.DEFAULT_VENV)
     ap.add_argument("--skip-install", action="store_true")
     args = ap.parse_args()

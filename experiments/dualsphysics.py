@@ -40,6 +40,7 @@ Run and read-back
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import re
@@ -116,8 +117,10 @@ def build(home=DEFAULT_HOME, src=None, jobs=2):
 
 # --- case --------------------------------------------------------------------------------
 
+@functools.lru_cache(maxsize=8)
 def case_particles(dx):
-    """Our dam break at ``dx``: (boundary xy, fluid xy, fluid rho, scene constants)."""
+    """Our dam break at ``dx``: (boundary xy, fluid xy, fluid rho, scene constants); built
+    once per dx (the callers ask for the constants before the run writes the case)."""
     from fpsi_jax import cases
     scene = cases.build("dam_break", dx=dx)
     kw = scene.builder_kwargs
