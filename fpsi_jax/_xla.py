@@ -35,7 +35,8 @@ depends on them.
 the ``fpsi`` command and the test suite call it, a Python program that imports fpsi_jax
 decides for itself, since the setting is JAX's and covers all of its programs): JAX's
 persistent compilation cache, in ``$FPSI_CACHE_DIR`` or ``~/.cache/fpsi-jax/xla`` (under
-``$XDG_CACHE_HOME`` when set), every program however quick to compile; above 1 GiB the
+``$XDG_CACHE_HOME`` when set), one folder per number of usable cores (:func:`cache_dir`),
+every program however quick to compile; above 1 GiB the
 oldest entries are deleted when it is turned on (:func:`prune`). A run's fixed cost is
 mostly compilation: the step's chunk, the set-up's and the list allocation's programs; a
 repeated run of the same scene loads them instead. The cache key covers the
@@ -103,11 +104,30 @@ CACHE_BYTES = 2 ** 30
 
 
 def cache_dir() -> str:
-    """Where :func:`configure_cache` keeps compiled programs."""
-    if os.environ.get("FPSI_CACHE_DIR"):
-        return os.environ["FPSI_CACHE_DIR"]
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return os.path.join(base, "fpsi-jax", "xla")
+    """Where :func:`configure_cache` keeps compiled programs: a folder per number of CPU
+    cores this process may run on (:func:`cores`), in ``$FPSI_CACHE_DIR`` or
+    ``~/.cache/fpsi-jax/xla``.
+
+    XLA:CPU splits a program's loops over the cores the process may use *when it compiles
+    it*, and JAX's cache key does not include that number: a program compiled in a process
+    pinned to one core (``taskset -c 1``, a one-CPU container) and loaded by a process on
+    two ran on one core. The elastic gate's 0.1 s took 16.3 s of stepping so, 10.1 s
+    compiled on two cores (docs/performance.md, *Compiled programs and cores*)."""
+    base = os.environ.get("FPSI_CACHE_DIR")
+    if not base:
+        home = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"),
+                                                                 ".cache")
+        base = os.path.join(home, "fpsi-jax", "xla")
+    return os.path.join(base, f"cores-{cores()}")
+
+
+def cores() -> int:
+    """The CPU cores this process may run on (its affinity mask; all cores where the
+    platform has none)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
 
 
 def configure_cache() -> str | None:

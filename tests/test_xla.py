@@ -86,20 +86,37 @@ def test_compiled_programs_are_kept_and_found_again(tmp_path):
     """use_compile_cache() turns on JAX's persistent cache in FPSI_CACHE_DIR; a program
     compiled in one process is written there, and a second process loads it (JAX logs the
     cache hit). Importing fpsi_jax alone leaves JAX's setting as it was."""
-    cache = str(tmp_path / "xla")
+    cache = os.path.join(tmp_path, "xla", f"cores-{_xla.cores()}")
     logged = ("import logging; logging.basicConfig(level=logging.DEBUG); "
               "logging.getLogger('jax._src.compiler').setLevel(logging.DEBUG); " + _JIT)
-    r = _run(logged, FPSI_CACHE_DIR=cache)
+    r = _run(logged, FPSI_CACHE_DIR=str(tmp_path / "xla"))
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == [cache, cache]
     assert os.listdir(cache)
     assert "Persistent compilation cache hit for 'jit__lambda'" not in r.stderr
-    r = _run(logged, FPSI_CACHE_DIR=cache)
+    r = _run(logged, FPSI_CACHE_DIR=str(tmp_path / "xla"))
     assert r.returncode == 0, r.stderr
     assert "Persistent compilation cache hit for 'jit__lambda'" in r.stderr
     r = _run("import fpsi_jax, jax; print(jax.config.jax_compilation_cache_dir)",
-             FPSI_CACHE_DIR=cache)
+             FPSI_CACHE_DIR=str(tmp_path / "xla"))
     assert r.stdout.split() == ["None"]
+
+
+def test_programs_compiled_on_fewer_cores_are_kept_apart(tmp_path):
+    """A process allowed fewer cores compiles into a folder of its own: XLA:CPU splits a
+    program's loops over the cores it may use when it compiles, and a program compiled on
+    one core, loaded on two, ran on one."""
+    code = "import fpsi_jax, jax; print(fpsi_jax.use_compile_cache())"
+    r = _run(code, FPSI_CACHE_DIR=str(tmp_path))
+    assert r.stdout.split() == [os.path.join(tmp_path, f"cores-{_xla.cores()}")]
+    one = sorted(os.sched_getaffinity(0))[:1]
+    e = {k: v for k, v in os.environ.items() if k not in ("JAX_COMPILATION_CACHE_DIR",
+                                                         "FPSI_NO_COMPILE_CACHE")}
+    e["FPSI_CACHE_DIR"] = str(tmp_path)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=e,
+                       timeout=120, preexec_fn=lambda: os.sched_setaffinity(0, one))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == [os.path.join(tmp_path, "cores-1")]
 
 
 def test_the_users_cache_choice_and_the_opt_out_are_kept(tmp_path):
