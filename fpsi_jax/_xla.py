@@ -149,6 +149,10 @@ def configure_cache() -> str | None:
     if not os.access(path, os.W_OK):
         return None
     prune(path)
+    if not os.environ.get("FPSI_CACHE_DIR"):
+        # programs written straight into the default folder (no folder per core count)
+        # are never looked up again
+        prune(os.path.dirname(path), limit=0)
     jax.config.update("jax_compilation_cache_dir", path)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)   # any size
@@ -156,8 +160,8 @@ def configure_cache() -> str | None:
 
 
 def prune(path: str, limit: int = CACHE_BYTES) -> None:
-    """Delete the least recently written files of ``path`` until it holds under 3/4 of
-    ``limit`` bytes, if it holds more than ``limit`` (JAX's own size limit needs the
+    """Delete the least recently written files of ``path`` (not its folders) until it holds
+    under 3/4 of ``limit`` bytes, if it holds more than ``limit`` (JAX's own size limit needs the
     ``filelock`` package, which fpsi-jax does not depend on). A program deleted while
     another process wants it is only compiled again."""
     try:

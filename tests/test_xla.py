@@ -119,6 +119,18 @@ def test_programs_compiled_on_fewer_cores_are_kept_apart(tmp_path):
     assert r.stdout.split() == [os.path.join(tmp_path, "cores-1")]
 
 
+def test_the_default_folder_drops_programs_of_no_core_count(tmp_path):
+    """Under the default location, programs written beside the per-core folders (no core
+    count in their path) are deleted: nothing looks them up."""
+    base = tmp_path / "fpsi-jax" / "xla"
+    base.mkdir(parents=True)
+    (base / "jit_f-0123-cache").write_bytes(b"x" * 10)
+    r = _run("import fpsi_jax; print(fpsi_jax.use_compile_cache())", XDG_CACHE_HOME=str(tmp_path))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == [str(base / f"cores-{_xla.cores()}")]
+    assert os.listdir(base) == [f"cores-{_xla.cores()}"]
+
+
 def test_the_users_cache_choice_and_the_opt_out_are_kept(tmp_path):
     mine = str(tmp_path / "mine")
     r = _run(_JIT, JAX_COMPILATION_CACHE_DIR=mine, FPSI_CACHE_DIR=str(tmp_path / "ours"))
