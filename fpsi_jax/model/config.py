@@ -227,6 +227,15 @@ class Physics:
     Couplings:
       fsi, n_structure     fluid–structure method (options.FsiMethod) and structure disc count
       dem_substeps         DEM sub-steps per SPH step (multi-rate)
+      dem_list_substeps    the DEM list's skin test at every sub-step (True) or once per
+                           SPH step (False, the default): the list is rebuilt at the start
+                           of a step when a disc's displacement since the build plus twice
+                           the fastest disc's travel in a step passes half the skin; the
+                           sub-steps only track each disc's displacement, and a disc that
+                           passed half the skin after all flags the chunk to be redone with
+                           this switch on (Status.dem_stale; run.driver.grow). The test,
+                           its two conditionals and the history remap made up a third of
+                           a sub-step (docs/performance.md)
       fpi, n_grain         fluid–particle coupling of the grains (fpi.py): voidage in the
                            fluid equations (W42–43), pressure force (buoyancy), drag,
                            lubrication
@@ -296,6 +305,7 @@ class Physics:
     fsi: FsiMethod | None = None
     n_structure: int = 0
     dem_substeps: int = 1
+    dem_list_substeps: bool = False
     fpi: bool = False
     n_grain: int = 0
     voidage: Voidage = Voidage.AREA

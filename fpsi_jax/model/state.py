@@ -151,6 +151,10 @@ class Status:
 
     bad/step/particle/code  first step where a particle went bad, and which one and why
     overflow                the neighbour list overflowed (the chunk must be redone)
+    dem_stale               a disc moved past half the DEM list's skin between the list's
+                            checks once per SPH step (Physics.dem_list_substeps; the chunk
+                            is redone with the check at every DEM sub-step; overflow is set
+                            with it)
     h_exceeded              a smoothing length outgrew the neighbour cut-off (redo)
     redo_step               first step not computed exactly: an overflow's step, or the step
                             after h outgrew the cut-off (−1: none)
@@ -172,6 +176,7 @@ class Status:
     redo_step: Any
     sph_need: Any
     dem_need: Any
+    dem_stale: Any = None
 
     @staticmethod
     def ok():
@@ -179,7 +184,7 @@ class Status:
         f = jnp.zeros((), bool)
         return Status(bad=f, step=z - 1, particle=z - 1, code=z, overflow=f, h_exceeded=f,
                       rebuilds=z, redo_step=z - 1, sph_need=jnp.zeros((3,), jnp.int32),
-                      dem_need=jnp.zeros((3,), jnp.int32))
+                      dem_need=jnp.zeros((3,), jnp.int32), dem_stale=f)
 
     def must_redo(self) -> bool:
         """Host side: the chunk must be redone with larger lists, i.e. a list overflowed

@@ -148,7 +148,9 @@ _advance = jax.jit(stepper.advance, static_argnums=(0, 4, 5))
 
 def grow(phys: Physics, failed: State) -> Physics:
     """Physics with neighbour lists that fit what ``failed`` (a redone chunk's end state)
-    ran out of: more capacity after an overflow, a larger cut-off if h outgrew it."""
+    ran out of: more capacity after an overflow, a larger cut-off if h outgrew it, the DEM
+    list's skin test at every sub-step if a disc passed half its skin between the
+    once-a-step tests (Physics.dem_list_substeps)."""
     if phys.has_fluid:
         nb = phys.neighbors
         if bool(failed.status.h_exceeded):
@@ -157,6 +159,8 @@ def grow(phys: Physics, failed: State) -> Physics:
         if neighbors.overflowed(failed.nbrs):
             nb = neighbors.grow(nb, failed.nbrs, np.asarray(failed.status.sph_need))
         phys = dataclasses.replace(phys, neighbors=nb)
+    if phys.has_solid and failed.status.dem_stale is not None and bool(failed.status.dem_stale):
+        phys = dataclasses.replace(phys, dem_list_substeps=True)
     if phys.has_solid and neighbors.overflowed(failed.solid_nbrs):
         phys = dataclasses.replace(phys, dem_neighbors=neighbors.grow(
             phys.dem_neighbors, failed.solid_nbrs, np.asarray(failed.status.dem_need)))
@@ -410,7 +414,9 @@ def grown_like(phys: Physics, saved: dict) -> Physics:
                                       min_cell_capacity=int(old.get("min_cell_capacity", 0)),
                                       wall_width=int(old.get("wall_width", cfg.wall_width)))
             phys = dataclasses.replace(phys, **{key: cfg})
-    return dataclasses.replace(phys, h_margin=float(saved.get("h_margin", phys.h_margin)))
+    return dataclasses.replace(phys, h_margin=float(saved.get("h_margin", phys.h_margin)),
+                               dem_list_substeps=bool(saved.get("dem_list_substeps",
+                                                                phys.dem_list_substeps)))
 
 
 def excluded(state: State) -> int:

@@ -479,7 +479,7 @@ def load_checkpoint(path) -> Checkpoint:
 _RUN_TALLIES = (".status.sph_need", ".status.dem_need")
 #: state leaves a checkpoint may lack, with the value that is always safe: the walls then
 #: count as near until the DEM list's next rebuild asks them again
-_SAFE_DEFAULTS = {".walls.apart": False}
+_SAFE_DEFAULTS = {".walls.apart": False, ".status.dem_stale": False}
 
 
 def restore(state, ck: Checkpoint):

@@ -310,6 +310,18 @@ def update(cfg: NeighborConfig, nbrs: partition.NeighborList, x, about_centre=Tr
     return new, rebuilt, need
 
 
+def rebuild_if(cfg: NeighborConfig, nbrs: partition.NeighborList, x, now):
+    """:func:`update` with the rebuild decided by the caller: rebuilt at ``x`` (scene
+    frame) where the traced bool ``now`` holds. Returns (list, rebuilt?, need)."""
+    xs = shift(cfg, x)
+    zero = jnp.zeros((3,), jnp.int32)
+    if nbrs.cell_list_fn is None:        # domain < 3 cut-offs: jax-md's O(N²) search
+        new = jax.lax.cond(now, lambda: nbrs.update(xs), lambda: nbrs)
+        return new, jnp.any(new.reference_position != nbrs.reference_position), zero
+    new, need = jax.lax.cond(now, lambda: _rebuild(cfg, nbrs, xs), lambda: (nbrs, zero))
+    return new, now, need
+
+
 def rebuild(cfg: NeighborConfig, nbrs: partition.NeighborList, xs):
     """The Dense list of jax-md (same rows, same order) from positions ``xs`` already in
     the list's frame, with one distance pass instead of two.

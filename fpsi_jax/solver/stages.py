@@ -210,37 +210,62 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
                                          wall_shear=wall_shear), bonds=b)
 
 
-def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, wet) -> State:
-    """One DEM kick–drift–kick of length ``dt`` ending at time ``t``."""
+def _dem_list_update(phys: Physics, state: State, rebuild_now=None) -> State:
+    """The DEM list at the discs' present positions: rebuilt when a disc moved more than
+    half the skin since the build (jax-md's test), or when ``rebuild_now`` (a traced bool)
+    holds; a rebuild re-addresses the contact histories and asks the walls again."""
+    s, old, walls = state.solid, state.solid_nbrs, state.walls
+    cfg = phys.dem_neighbors
+    with jax.named_scope("neighbors.dem_update"):
+        if rebuild_now is None:
+            nbrs, rebuilt, need = neighbors.update(cfg, old, s.x, about_centre=False)
+        else:
+            nbrs, rebuilt, need = neighbors.rebuild_if(cfg, old, s.x, rebuild_now)
+        if walls is None or walls.apart is None:
+            shear = jax.lax.cond(rebuilt, dem.remap_history, lambda o, h, n: h,
+                                 old.idx, s.shear, nbrs.idx)
+        else:
+            shear, apart = jax.lax.cond(
+                rebuilt,
+                lambda: (dem.remap_history(old.idx, s.shear, nbrs.idx),
+                         walls_apart(phys, s, walls, s.x)),
+                lambda: (s.shear, walls.apart))
+            walls = walls.replace(apart=apart)
+    st = state.status
+    return state.replace(
+        solid_nbrs=nbrs, walls=walls, solid=s.replace(shear=shear),
+        status=st.replace(rebuilds=st.rebuilds + rebuilt.astype(jnp.int32),
+                          overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool),
+                          dem_need=jnp.maximum(st.dem_need, need)))
+
+
+def _list_due(phys: Physics, params: Params, state: State):
+    """Whether the DEM list should be rebuilt at the start of an SPH step, so that it holds
+    through the step's sub-steps: a disc's displacement since the build plus twice the
+    fastest disc's travel over the step, Δt max|v|, passes half the skin (the factor 2
+    leaves room for discs that speed up within the step; one that passes half the skin
+    after all is caught by :func:`discs`)."""
+    cfg, s = phys.dem_neighbors, state.solid
+    d = neighbors.shift(cfg, s.x) - state.solid_nbrs.reference_position
+    moved = jnp.sqrt(jnp.max(jnp.sum(d * d, axis=-1)))
+    reach = 2.0 * params.dt * jnp.sqrt(jnp.max(jnp.sum(s.v * s.v, axis=-1)))
+    return moved + reach > 0.5 * cfg.skin
+
+
+def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, wet,
+                  check_list: bool = True) -> State:
+    """One DEM kick–drift–kick of length ``dt`` ending at time ``t``; ``check_list``: the
+    DEM list's skin test at the new positions (:func:`_dem_list_update`)."""
     s = state.solid
     with jax.named_scope("step.solid_kick_drift"):
         v_half = s.v + 0.5 * dt * s.acc
         w_half = s.omega + 0.5 * dt * s.alpha
         x_new = s.x + dt * v_half
         th_new = s.theta + dt * w_half
-    with jax.named_scope("neighbors.dem_update"):
-        old = state.solid_nbrs
-        nbrs, rebuilt, need = neighbors.update(phys.dem_neighbors, old, x_new,
-                                               about_centre=False)
-        walls = state.walls
-        if walls is None or walls.apart is None:
-            shear = jax.lax.cond(rebuilt, dem.remap_history, lambda o, h, n: h,
-                                 old.idx, s.shear, nbrs.idx)
-        else:
-            # a rebuild re-addresses the histories and asks the walls again at its positions
-            shear, apart = jax.lax.cond(
-                rebuilt,
-                lambda: (dem.remap_history(old.idx, s.shear, nbrs.idx),
-                         walls_apart(phys, s, walls, x_new)),
-                lambda: (s.shear, walls.apart))
-            walls = walls.replace(apart=apart)
-    st = state.status
-    state = state.replace(
-        t=t, solid_nbrs=nbrs, walls=walls,
-        solid=s.replace(x=x_new, theta=th_new, v=v_half, omega=w_half, shear=shear),
-        status=st.replace(rebuilds=st.rebuilds + rebuilt.astype(jnp.int32),
-                          overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool),
-                          dem_need=jnp.maximum(st.dem_need, need)))
+    state = state.replace(t=t, solid=s.replace(x=x_new, theta=th_new, v=v_half,
+                                                omega=w_half))
+    if check_list:
+        state = _dem_list_update(phys, state)
     state = disc_forces(phys, params, state, dt, f_fluid, wet)
     s = state.solid
     with jax.named_scope("step.solid_kick"):
@@ -251,7 +276,15 @@ def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, w
 def discs(phys: Physics, params: Params, state: State) -> State:
     """``phys.dem_substeps`` DEM steps of Δt/n covering one step (multi-rate stepping), the
     fluid's force on the discs held at its value of the last SPH evaluation. ``state.t`` is
-    the time at the end of the step."""
+    the time at the end of the step.
+
+    The DEM list is tested once for the step (:func:`_list_due`: rebuilt now if a disc
+    could pass half the skin before the step ends), not at every sub-step: the test, its
+    conditionals and the history remap were a third of a sub-step of a few hundred discs.
+    The sub-steps track each disc's largest squared displacement from the list's build
+    positions; one past half the skin flags ``Status.dem_stale`` (and ``overflow``), and
+    the host redoes the chunk with ``Physics.dem_list_substeps``, the test at every
+    sub-step."""
     n = phys.dem_substeps
     dts = params.dt / n
     t0 = (state.step - 1) * params.dt      # the time at the start of the step
@@ -267,9 +300,31 @@ def discs(phys: Physics, params: Params, state: State) -> State:
 
     if n == 1:
         part = one(0, part)
-    else:
+    elif phys.dem_list_substeps:
         with jax.named_scope("step.dem_substeps"):
             part = jax.lax.fori_loop(0, n, one, part)
+    else:
+        # the list's skin test once for the step; the sub-steps track how far each disc
+        # has moved from the list's build positions
+        part = _dem_list_update(phys, part, _list_due(phys, params, part))
+        cfg = phys.dem_neighbors
+        ref = part.solid_nbrs.reference_position + jnp.asarray(cfg.origin,
+                                                                part.solid.x.dtype)
+
+        def tracked(k, carry):
+            p, far = carry
+            p = _disc_substep(phys, params, p, t0 + (k + 1) * dts, dts, f_fluid, wet,
+                              check_list=False)
+            d = p.solid.x - ref
+            return p, jnp.maximum(far, jnp.sum(d * d, axis=-1))
+
+        with jax.named_scope("step.dem_substeps"):
+            part, far = jax.lax.fori_loop(0, n, tracked,
+                                          (part, jnp.zeros(ref.shape[:1], ref.dtype)))
+        stale = jnp.any(far > (0.5 * cfg.skin) ** 2)
+        st = part.status
+        part = part.replace(status=st.replace(overflow=st.overflow | stale,
+                                              dem_stale=st.dem_stale | stale))
     status = part.status
     if state.walls is not None:
         status = health.check_wall_crossings(part.solid, state.solid.x, state.walls,

@@ -1,7 +1,7 @@
 """The stages of a step (fpsi_jax.solver.stages), each checked on its own: the DEM forces
 (stages.disc_forces: load ramp, gravity, local and viscous damping, walls), the contact
 history across neighbour-list rebuilds in the DEM sub-step, bonds breaking inside the step,
-the multi-rate sub-steps, the SPH evaluation with a grain in still water, and the step
+the multi-rate sub-steps and their DEM list tested once a step, the SPH evaluation with a grain in still water, and the step
 marking the first inexact step for the host to redo.
 
 The float64 fixture (conftest) is module-scoped, so the one float32 test comes first.
@@ -370,6 +370,56 @@ def test_walls_skipped_while_apart_change_nothing():
     assert v[0, 1] < 0 < v[-1, 1]                                # it did bounce
     flips = np.flatnonzero(np.diff(apart.astype(int)))
     assert apart[0] and apart[-1] and len(flips) == 2            # apart, near, apart
+
+
+def _grain_run(phys, p, st, n):
+    """The grain's position after each of ``n`` steps, and the last state."""
+    def body(s, _):
+        s = forward.step(phys, s, p)
+        return s, s.solid.x[0]
+    end, x = jax.jit(lambda s0: jax.lax.scan(body, s0, None, length=n))(st)
+    return np.asarray(x), end
+
+
+@x64
+def test_dem_list_tested_once_a_step_equals_the_test_at_every_substep():
+    """The DEM list's skin test once per SPH step (with the step's reach: stages._list_due)
+    and at every sub-step (Physics.dem_list_substeps) sum the same pairs: a grain thrown
+    through water at a wall, its list rebuilt many times, takes the same path to
+    round-off, and nothing is flagged."""
+    sc = grain_scene()
+    phys, p, st = init_x64(sc)
+    assert phys.dem_substeps > 1 and not phys.dem_list_substeps
+    st = st.replace(solid=st.solid.replace(v=st.solid.v.at[0].set(A(0.3, -0.3))))
+    x_step, end = _grain_run(phys, p, st, 60)
+    x_sub, end_sub = _grain_run(dataclasses.replace(phys, dem_list_substeps=True), p, st, 60)
+    np.testing.assert_allclose(x_step, x_sub, rtol=0, atol=1e-14)
+    assert not bool(end.status.dem_stale) and not bool(end.status.overflow)
+    assert np.ptp(x_step[:, 0]) > 3 * phys.dem_neighbors.skin      # rebuilt on the way
+    assert not np.allclose(np.asarray(end.solid_nbrs.reference_position),
+                           np.asarray(st.solid_nbrs.reference_position))
+
+
+@x64
+def test_a_disc_past_half_the_skin_within_a_step_flags_the_chunk():
+    """A grain at rest (no reach) pushed so hard that it passes half the DEM list's skin
+    within one step: the step flags the list stale (and overflowed, so the host redoes the
+    chunk), and the driver redoes it with the skin test at every sub-step, where the list
+    is rebuilt in time and nothing is flagged."""
+    from fpsi_jax.run.driver import grow
+    sc = grain_scene()
+    phys, p, st = init_x64(sc)
+    half = 0.5 * phys.dem_neighbors.skin
+    m = float(sc.solid.mass[0])
+    push = 16.0 * half / float(p.dt) ** 2 * m      # from rest: past 2 half skins in a step
+    st = st.replace(solid=st.solid.replace(f_ext=st.solid.f_ext.at[0].set(A(push, 0.0))))
+    _, end = _grain_run(phys, p, st, 1)
+    assert bool(end.status.dem_stale) and bool(end.status.overflow)
+    assert end.status.must_redo() and int(end.status.redo_step) == 1
+    safe = grow(phys, end)
+    assert safe.dem_list_substeps
+    _, end = _grain_run(safe, p, st, 1)
+    assert not bool(end.status.dem_stale) and not bool(end.status.overflow)
 
 
 # --- the SPH evaluation with a grain (float64) -------------------------------------------
