@@ -161,8 +161,8 @@ def configure_cache() -> str | None:
 
 def prune(path: str, limit: int = CACHE_BYTES) -> None:
     """Delete the least recently written files of ``path`` (not its folders) until it holds
-    under 3/4 of ``limit`` bytes, if it holds more than ``limit`` (JAX's own size limit needs the
-    ``filelock`` package, which fpsi-jax does not depend on). A program deleted while
+    under 3/4 of ``limit`` bytes, if it holds more than ``limit`` (JAX's own size limit
+    needs the ``filelock`` package, which fpsi-jax does not depend on). A program deleted while
     another process wants it is only compiled again."""
     try:
         files = [(e.stat().st_mtime, e.stat().st_size, e.path) for e in os.scandir(path)

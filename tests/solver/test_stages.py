@@ -1,8 +1,8 @@
 """The stages of a step (fpsi_jax.solver.stages), each checked on its own: the DEM forces
 (stages.disc_forces: load ramp, gravity, local and viscous damping, walls), the contact
 history across neighbour-list rebuilds in the DEM sub-step, bonds breaking inside the step,
-the multi-rate sub-steps and their DEM list tested once a step, the SPH evaluation with a grain in still water, and the step
-marking the first inexact step for the host to redo.
+the multi-rate sub-steps and their DEM list tested once a step, the SPH evaluation with a
+grain in still water, and the step marking the first inexact step for the host to redo.
 
 The float64 fixture (conftest) is module-scoped, so the one float32 test comes first.
 """
