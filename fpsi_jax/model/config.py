@@ -122,7 +122,7 @@ class Parking:
 #: Physics options that are switches (true/false)
 SWITCHES = ("xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
             "artificial_viscosity", "wall_repulsion", "x64", "fpi", "lubrication",
-            "wall_images", "sort_fluid", "transport_continuity")
+            "wall_images", "sort_fluid", "transport_continuity", "dem_list_substeps")
 #: numeric Physics options: (lo, hi, lo_open, hi_open, integer)
 RANGES = {"h_margin": (1.0, 2.0, False, False, False),
           "rho_tolerance": (0.0, 1.0, True, False, False),
@@ -328,7 +328,8 @@ class Physics:
                "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section",
                "dem_skin", "fsi", "dem_substeps", "fpi", "voidage", "lubrication",
                "fpi_pressure", "eps_floor", "drag", "pair_block", "density_diffusion",
-               "wall_images", "shifting", "sort_fluid", "transport_continuity")
+               "wall_images", "shifting", "sort_fluid", "transport_continuity",
+               "dem_list_substeps")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,

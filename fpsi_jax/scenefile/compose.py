@@ -494,6 +494,8 @@ def compose(spec: dict, path: str) -> SceneFile:
         options["bond_section"] = ph["bond_section"]
     if ph["dem_substeps"] is not None:
         options["dem_substeps"] = ph["dem_substeps"]
+    if ph["dem_list_substeps"]:
+        options["dem_list_substeps"] = True
     params = Params(gravity=g_vec, sph=sp, dem=dem, bond=bond, fpi=fpi)
 
     # velocity scale and domain

@@ -257,6 +257,9 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
       Key("kernel", "str", "", "wendland", "SPH kernel", choices=("wendland", "cubic")),
       Key("dem_substeps", "int", "", None, "DEM sub-steps per SPH step (default: the fewest "
           "the DEM bound needs)", lo=1),
+      Key("dem_list_substeps", "bool", "", False, "the DEM contact list's skin test at "
+          "every sub-step (false: once per SPH step, with the step's reach; a disc that "
+          "outran it makes the run redo its chunk with the test at every sub-step)"),
       Key("xsph", "bool", "", True, "XSPH velocity smoothing"),
       Key("transport_continuity", "bool", "", True, "continuity with the velocity the "
           "particles move with, v + δv_XSPH (false: with v, as the seeds' K32)"),

@@ -78,6 +78,26 @@ def squeezed_block():
     return sc
 
 
+def test_a_stale_dem_list_is_redone_with_the_test_at_every_substep():
+    """A grain pushed from rest past two half-skins of its DEM list within one step: the
+    once-a-step test misses it, the step flags the list stale, and the driver redoes the
+    chunk with Physics.dem_list_substeps; the run then equals one made that way from the
+    start."""
+    from ..small_scenes import grain_scene
+    sc = grain_scene(x64=False)
+    phys, params = setup(sc)
+    half = 0.5 * phys.dem_neighbors.skin
+    sc.solid.f_ext = np.array([[16.0 * half / params.dt ** 2 * float(sc.solid.mass[0]), 0.0]])
+    t_end = 2 * params.dt                     # a hard push: two steps of it, loose density band
+    redone = simulate(sc, t_end=t_end, chunk_steps=1, progress=False, rho_tolerance=0.9)
+    strict = simulate(sc, t_end=t_end, chunk_steps=1, progress=False, rho_tolerance=0.9,
+                      dem_list_substeps=True)
+    assert redone.physics.dem_list_substeps and redone.reallocations >= 1
+    assert not bool(redone.state.status.dem_stale)
+    np.testing.assert_array_equal(np.asarray(redone.state.solid.x),
+                                  np.asarray(strict.state.solid.x))
+
+
 def test_overflow_is_redone_and_equals_a_large_allocation(tmp_path):
     # a thin skin (0.1 h), so the compression outgrows the list within the 24 steps
     out = tmp_path / "tight.h5"
