@@ -16,9 +16,9 @@ and the rebuild interval seen in the whole-step chunk. ``--wall-rows`` adds, in 
 process and interleaved chunk by chunk, the whole step with the wall rows read at the
 width setup measured (NeighborConfig.wall_width) against the same step reading all K
 slots (wall_width 0), each the median of ``--reps`` chunks; ``--wall-widths 15 22 25`` the
-step at each of those widths; ``--walls-apart`` the step and its DEM part with the DEM wall
-contacts skipped while no disc can touch a wall (WallState.apart) against evaluated in
-every sub-step. ``--profile`` adds the time per
+step at each of those widths; ``--walls-near`` the step and its DEM part with the DEM wall
+contacts of the discs near a wall only (WallState.near) against every disc's in every
+sub-step. ``--profile`` adds the time per
 named scope (``jax.named_scope`` in the stages and physics modules) from a JAX profiler
 trace of one chunk: the trace's per-op times are summed by the op's scope (ops outside any
 scope are listed by their primitive). Profiling slows small ops; read the shares, not the
@@ -102,7 +102,7 @@ def interleaved_ms(fns, state, steps, reps):
     return {k: statistics.median(v) / steps * 1e3 for k, v in walls.items()}
 
 
-def bench(name, warm, steps, reps, profile, wall_rows=False, walls_apart=False,
+def bench(name, warm, steps, reps, profile, wall_rows=False, walls_near=False,
           wall_widths=(), k_extra=()):
     scene = cases.build(name, t_end=warm)
     state = simulate(scene, progress=False).state
@@ -157,16 +157,17 @@ def bench(name, warm, steps, reps, profile, wall_rows=False, walls_apart=False,
             fns[int(nb.idx.shape[1])] = (_loop(lambda i, s, ph=ph: solver.step(ph, s, p), steps),
                                          state.replace(nbrs=nb))
         row["step_ms_at_K"] = interleaved_ms(fns, state, steps, reps)
-    if walls_apart and state.walls is not None:
-        # the same chunks from a state whose walls are always evaluated (apart=None)
-        always = state.replace(walls=state.walls.replace(apart=None))
-        ab = interleaved_ms({"skip": whole, "always": (whole, always),
-                             "dem_skip": dem, "dem_always": (dem, always)},
+    if walls_near and state.walls is not None:
+        # the same chunks from a state whose walls are evaluated for every disc (near=None)
+        always = state.replace(walls=state.walls.replace(near=None, n_near=None))
+        ab = interleaved_ms({"near": whole, "always": (whole, always),
+                             "dem_near": dem, "dem_always": (dem, always)},
                             state, steps, reps)
-        row.update(walls_apart_at_start=bool(state.walls.apart),
-                   walls_apart_in_chunk=bool(end.walls.apart),
-                   step_ms_walls_skipped=ab["skip"], step_ms_walls_always=ab["always"],
-                   discs_ms_walls_skipped=ab["dem_skip"], discs_ms_walls_always=ab["dem_always"])
+        row.update(walls_near_at_start=int(state.walls.n_near),
+                   walls_near_in_chunk=int(end.walls.n_near),
+                   walls_near_capacity=int(state.walls.near.shape[0]),
+                   step_ms_walls_near=ab["near"], step_ms_walls_always=ab["always"],
+                   discs_ms_walls_near=ab["dem_near"], discs_ms_walls_always=ab["dem_always"])
     return row
 
 
@@ -184,15 +185,15 @@ def main():
     ap.add_argument("--k-extra", nargs="*", type=int, default=[],
                     help="A/B: the whole step with the SPH list this many slots wider "
                          "(0: reallocated at the state's own width)")
-    ap.add_argument("--walls-apart", action="store_true",
-                    help="A/B: DEM wall contacts skipped while no disc can touch a wall "
-                         "against evaluated every sub-step")
+    ap.add_argument("--walls-near", action="store_true",
+                    help="A/B: DEM wall contacts of the discs near a wall only against "
+                         "every disc's in every sub-step")
     ap.add_argument("--out", default=os.path.join(HERE, "results", "bench_coupled.json"))
     args = ap.parse_args()
     rows = []
     for name in args.cases:
         r = bench(name, args.warm, args.steps, args.reps, args.profile, args.wall_rows,
-                  args.walls_apart, args.wall_widths, args.k_extra)
+                  args.walls_near, args.wall_widths, args.k_extra)
         rows.append(r)
         print(f"{name}: step {r['step_ms']:.2f} ms; DEM {r['discs_ms']:.2f} ms "
               f"({r['dem_substeps']} sub-steps of {r['substep_us']:.0f} us, "
@@ -209,11 +210,12 @@ def main():
         if "step_ms_at_K" in r:
             print("    step at list width " + ", ".join(
                 f"K = {k}: {ms:.2f} ms" for k, ms in r["step_ms_at_K"].items()), flush=True)
-        if "step_ms_walls_skipped" in r:
-            print(f"    walls apart {r['walls_apart_at_start']} -> {r['walls_apart_in_chunk']}: "
-                  f"step {r['step_ms_walls_skipped']:.2f} against "
+        if "step_ms_walls_near" in r:
+            print(f"    discs near a wall {r['walls_near_at_start']} -> "
+                  f"{r['walls_near_in_chunk']} (room {r['walls_near_capacity']}): "
+                  f"step {r['step_ms_walls_near']:.2f} against "
                   f"{r['step_ms_walls_always']:.2f} ms, DEM part "
-                  f"{r['discs_ms_walls_skipped']:.2f} against "
+                  f"{r['discs_ms_walls_near']:.2f} against "
                   f"{r['discs_ms_walls_always']:.2f} ms", flush=True)
         for k, v in list(r.get("profile_us_per_step", {}).items())[:15]:
             print(f"    {v:9.1f} us/step  {k}")

@@ -85,15 +85,17 @@ class BondState:
 @pytree_dataclass
 class WallState:
     """DEM line-segment walls a[k] → b[k] (fixed) and their active sides (w,): +1 the left
-    of a → b, −1 the right, 0 both (scene.WallBlock). ``apart`` (bool scalar): no free
-    disc can touch a wall until the DEM list is next rebuilt (physics.dem.walls_apart at
-    the list's build positions), so the sub-steps skip the wall contacts; None: always
-    evaluate them."""
+    of a → b, −1 the right, 0 both (scene.WallBlock). ``near`` (c,) int32: the free discs
+    that may touch a wall until the DEM list is next rebuilt (physics.dem.walls_near at
+    the list's build positions), padded with n_solid; ``n_near`` (int32 scalar) how many
+    there are. The sub-steps evaluate the wall contacts of those discs only, of none
+    while n_near = 0, and of every disc while n_near > c. None: always every disc."""
 
     a: Any
     b: Any
     side: Any = None
-    apart: Any = None
+    near: Any = None
+    n_near: Any = None
 
 
 @pytree_dataclass

@@ -179,10 +179,10 @@ def wall_contacts(dp, x, v, omega, radius, mass, a, b, shear, dt, side=None):
                         jnp.broadcast_to(mass[:, None], shape), shear, dt)
 
 
-def walls_apart(x, radius, a, b, side, margin, held=None):
-    """Whether no disc–wall pair (n, W) can touch while every disc stays within ``margin``
-    of ``x`` (the DEM list's skin/2 about its build positions): a scalar bool. Discs where
-    ``held`` (n,) is True (clamped or kinematic: their force is never read) do not count.
+def walls_near(x, radius, a, b, side, margin, held=None):
+    """Which discs may touch a wall while every disc stays within ``margin`` of ``x`` (the
+    DEM list's skin/2 about its build positions): (n,) bool. Discs where ``held`` (n,) is
+    True (clamped or kinematic: their force is never read) count as apart.
 
     The distance d from a centre to a segment's closest point is 1-Lipschitz in the
     centre. A two-sided wall touches a disc only at d < R. A one-sided wall
@@ -198,7 +198,7 @@ def walls_apart(x, radius, a, b, side, margin, held=None):
         apart &= (side[None] == 0) | (s > r + margin) | (d > 2.0 * r + margin)
     if held is not None:
         apart |= held[:, None]
-    return jnp.all(apart)
+    return ~jnp.all(apart, axis=1)
 
 
 def remap_history(old_idx, old_hist, new_idx):
@@ -232,5 +232,5 @@ def kinetic_energy(v, omega, mass, inertia):
 
 
 __all__ = ["perp", "reduced_mass", "linear_contact", "pair_geometry", "disc_contacts",
-           "wall_contacts", "wall_geometry", "wall_pair_geometry", "inward_normals", "walls_apart",
+           "wall_contacts", "wall_geometry", "wall_pair_geometry", "inward_normals", "walls_near",
            "remap_history", "local_damping", "viscous_damping", "load_factor", "kinetic_energy"]

@@ -221,7 +221,7 @@ def reallocate(phys: Physics, state: State) -> State:
         new = neighbors.allocate(phys.dem_neighbors, state.solid.x)
         shear = dem.remap_history(state.solid_nbrs.idx, state.solid.shear, new.idx)
         state = state.replace(solid_nbrs=new, solid=state.solid.replace(shear=shear))
-        state = stages.with_walls_apart(phys, state)
+        state = stages.with_walls_near(phys, state)
     return state
 
 

@@ -477,9 +477,10 @@ def load_checkpoint(path) -> Checkpoint:
 
 #: state leaves that only size regrown neighbour lists; a checkpoint without them resumes
 _RUN_TALLIES = (".status.sph_need", ".status.dem_need")
-#: state leaves a checkpoint may lack, with the value that is always safe: the walls then
-#: count as near until the DEM list's next rebuild asks them again
-_SAFE_DEFAULTS = {".walls.apart": False, ".status.dem_stale": False}
+#: state leaves a checkpoint may lack, with the value that is always safe (None: the fresh
+#: state's own): every disc's wall contacts are then evaluated until the DEM list's next
+#: rebuild asks which discs are near a wall again
+_SAFE_DEFAULTS = {".walls.near": None, ".walls.n_near": 2 ** 30, ".status.dem_stale": False}
 
 
 def restore(state, ck: Checkpoint):
@@ -501,7 +502,8 @@ def restore(state, ck: Checkpoint):
             leaves.append(v)          # a file written before these tallies: start at 0
             continue
         if name not in ck.leaves and name in _SAFE_DEFAULTS:
-            leaves.append(jax.numpy.asarray(_SAFE_DEFAULTS[name]))
+            safe = _SAFE_DEFAULTS[name]
+            leaves.append(v if safe is None else jax.numpy.asarray(safe, np.asarray(v).dtype))
             continue
         if name not in ck.leaves:
             raise ParameterError(f"the checkpoint lacks {name}: the scene or options differ "

@@ -105,7 +105,7 @@ def allocated_state(scene: Scene, phys: Physics) -> State:
                   walls=walls, fsi=fsi_state, fpi=fpi_state)
     if fluid is not None:
         state = state.replace(nbrs=neighbors.allocate(phys.neighbors, stages.sph_positions(state)))
-    return stages.with_walls_apart(phys, state)
+    return stages.with_walls_near(phys, state)
 
 
 @functools.partial(jax.jit, static_argnums=0)

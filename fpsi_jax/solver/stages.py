@@ -111,40 +111,67 @@ def _moving_rows(phys: Physics):
     return jnp.asarray(phys.moving_discs, jnp.int32) if phys.moving_discs else None
 
 
-def walls_apart(phys: Physics, solid, walls, x):
-    """Whether no free disc can touch a wall while the DEM list built at ``x`` holds
-    (every disc within skin/2 of its build position: :func:`dem.walls_apart`); a clamped
-    or kinematic disc (its force is never read) may touch one."""
-    own = functools.partial(take_rows, rows=_moving_rows(phys))
-    return dem.walls_apart(own(x), own(solid.radius), walls.a, walls.b, walls.side,
-                           0.5 * phys.dem_neighbors.skin, own(solid.fixed))
+def wall_capacity(phys: Physics) -> int:
+    """Room for the discs near a wall (WallState.near): a quarter of the free discs, at
+    least 16, in multiples of 8 (granular scenes put one layer of grains on their floor;
+    when more discs than this are near, the sub-steps evaluate every disc)."""
+    n = len(phys.moving_discs) if phys.moving_discs else phys.n_solid
+    return int(min(phys.n_solid, 8 * -(-max(16, n // 4) // 8)))
 
 
-def with_walls_apart(phys: Physics, state: State) -> State:
-    """``state`` with ``walls.apart`` for a DEM list built at the current positions (after
+def walls_near(phys: Physics, solid, walls, x):
+    """(the discs that may touch a wall while the DEM list built at ``x`` holds, every
+    disc within skin/2 of its build position, as (c,) rows padded with n_solid: c =
+    ``walls.near``'s length or :func:`wall_capacity`; how many there are). A clamped or
+    kinematic disc (its force is never read) counts as apart (:func:`dem.walls_near`)."""
+    n = x.shape[0]
+    c = wall_capacity(phys) if walls.near is None else walls.near.shape[0]
+    held = solid.fixed
+    if phys.moving_discs:
+        held = held | ~jnp.zeros(n, bool).at[_moving_rows(phys)].set(True)
+    near = dem.walls_near(x, solid.radius, walls.a, walls.b, walls.side,
+                          0.5 * phys.dem_neighbors.skin, held)
+    rows = jnp.nonzero(near, size=c, fill_value=n)[0].astype(jnp.int32)
+    return rows, jnp.sum(near, dtype=jnp.int32)
+
+
+def with_walls_near(phys: Physics, state: State) -> State:
+    """``state`` with ``walls.near`` for a DEM list built at the current positions (after
     an allocation)."""
     if state.walls is None:
         return state
-    return state.replace(walls=state.walls.replace(
-        apart=walls_apart(phys, state.solid, state.walls, state.solid.x)))
+    rows, count = walls_near(phys, state.solid, state.walls, state.solid.x)
+    return state.replace(walls=state.walls.replace(near=rows, n_near=count))
 
 
-def _wall_forces(dp, own, s, walls, wall_shear, dt):
-    """The walls' force, torque and new history on the rows ``own`` picks; zeros without
-    evaluating a pair while ``walls.apart`` (no disc can touch: a history of 0 is what the
-    contact law leaves on pairs apart)."""
-    def touching():
-        return dem.wall_contacts(dp, own(s.x), own(s.v), own(s.omega), own(s.radius),
-                                 own(s.mass), walls.a, walls.b, own(wall_shear), dt,
+def _wall_forces(dp, own, s, walls, dt):
+    """The walls' force (n, 2), torque (n,) and new history (n, W) on every disc, from the
+    discs ``walls.near`` lists (zeros elsewhere: a history of 0 is what the contact law
+    leaves on pairs apart), from none while it lists none, and from the rows ``own``
+    picks while more discs are near than it has room for (or without ``walls.near``)."""
+    n = s.x.shape[0]
+    zero = (jnp.zeros_like(s.x), jnp.zeros_like(s.omega), jnp.zeros_like(s.wall_shear))
+
+    def contacts(pick):
+        return dem.wall_contacts(dp, pick(s.x), pick(s.v), pick(s.omega), pick(s.radius),
+                                 pick(s.mass), walls.a, walls.b, pick(s.wall_shear), dt,
                                  walls.side)[:3]
 
-    if walls.apart is None:
-        return touching()
-    shape = own(wall_shear).shape
-    return jax.lax.cond(walls.apart,
-                        lambda: (jnp.zeros(shape[:1] + (2,), s.x.dtype),
-                                 jnp.zeros(shape[:1], s.x.dtype), jnp.zeros(shape, s.x.dtype)),
-                        touching)
+    def every():
+        rows = own(jnp.arange(n, dtype=jnp.int32))
+        return tuple(z.at[rows].set(v) for z, v in zip(zero, contacts(own)))
+
+    if walls.near is None:
+        return every()
+
+    def near():
+        rows = walls.near                           # padded with n: dropped on the way back
+        pick = functools.partial(take_rows, rows=jnp.minimum(rows, n - 1))
+        return tuple(z.at[rows].set(v, mode="drop") for z, v in zip(zero, contacts(pick)))
+
+    branch = jnp.where(walls.n_near == 0, 0, jnp.where(walls.n_near <= walls.near.shape[0],
+                                                       1, 2))
+    return jax.lax.switch(branch, [lambda: zero, near, every])
 
 
 def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
@@ -164,17 +191,15 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
         force, torque, shear, _ = dem.disc_contacts(dp, x, v, omega, s.radius, s.mass, s.fixed,
                                                     own(state.solid_nbrs.idx), own(s.shear),
                                                     dt, rows)
-    wall_shear = s.wall_shear
-    if state.walls is not None:
-        with jax.named_scope("dem.walls"):
-            fw, tw, wall_shear = _wall_forces(dp, own, s, state.walls, wall_shear, dt)
-        force, torque = force + fw, torque + tw
     if rows is not None:
         force = jnp.zeros_like(x).at[rows].set(force)
         torque = jnp.zeros_like(omega).at[rows].set(torque)
         shear = s.shear.at[rows].set(shear)
-        if state.walls is not None:
-            wall_shear = s.wall_shear.at[rows].set(wall_shear)
+    wall_shear = s.wall_shear
+    if state.walls is not None:
+        with jax.named_scope("dem.walls"):
+            fw, tw, wall_shear = _wall_forces(dp, own, s, state.walls, dt)
+        force, torque = force + fw, torque + tw
     if wet is not None:
         # on the grains' rows only: a structure disc is never wet
         mask, grains = wet
@@ -221,16 +246,16 @@ def _dem_list_update(phys: Physics, state: State, rebuild_now=None) -> State:
             nbrs, rebuilt, need = neighbors.update(cfg, old, s.x, about_centre=False)
         else:
             nbrs, rebuilt, need = neighbors.rebuild_if(cfg, old, s.x, rebuild_now)
-        if walls is None or walls.apart is None:
+        if walls is None or walls.near is None:
             shear = jax.lax.cond(rebuilt, dem.remap_history, lambda o, h, n: h,
                                  old.idx, s.shear, nbrs.idx)
         else:
-            shear, apart = jax.lax.cond(
+            shear, near, n_near = jax.lax.cond(
                 rebuilt,
                 lambda: (dem.remap_history(old.idx, s.shear, nbrs.idx),
-                         walls_apart(phys, s, walls, s.x)),
-                lambda: (s.shear, walls.apart))
-            walls = walls.replace(apart=apart)
+                         *walls_near(phys, s, walls, s.x)),
+                lambda: (s.shear, walls.near, walls.n_near))
+            walls = walls.replace(near=near, n_near=n_near)
     st = state.status
     return state.replace(
         solid_nbrs=nbrs, walls=walls, solid=s.replace(shear=shear),

@@ -318,16 +318,21 @@ def test_one_sided_wall_ignores_discs_on_its_inactive_side():
     np.testing.assert_allclose(f[1], [0.0, -1.0e5 * 0.001], rtol=1e-9)
 
 
-def test_walls_apart_by_hand():
-    """walls_apart with margin m = 0.1R against the floor (0, 0) → (0.1, 0): a pair counts
+def _apart(*args):
+    """No disc near a wall (dem.walls_near for none)."""
+    return ~jnp.any(dem.walls_near(*args))
+
+
+def test_walls_near_by_hand():
+    """walls_near with margin m = 0.1R against the floor (0, 0) → (0.1, 0): a pair counts
     as apart while d − R > m and, one-sided, the centre is clear on the active side
     (s > R + m) or farther than the 2R reach behind the line (d > 2R + m)."""
     m = 0.1 * R
     a, b = A([[0.0, 0.0]]), A([[0.1, 0.0]])
 
     def apart(y, side=None, x=0.05):
-        return bool(dem.walls_apart(A([[x, y]]), A([R]), a, b,
-                                    None if side is None else A([side]), m))
+        return bool(_apart(A([[x, y]]), A([R]), a, b, None if side is None else A([side]),
+                           m))
 
     assert apart(1.2 * R) and not apart(1.05 * R)                     # two-sided: d − R vs m
     assert apart(-1.2 * R) and not apart(-1.05 * R)
@@ -335,13 +340,13 @@ def test_walls_apart_by_hand():
     assert not apart(-1.2 * R, 1.0)                                   # behind, within reach
     assert not apart(-2.05 * R, 1.0) and apart(-2.2 * R, 1.0)         # d vs 2R + m
     assert apart(-0.5 * R, 1.0, x=0.1 + 3.0 * R)                      # behind, off its end
-    assert not bool(dem.walls_apart(A([[0.05, 0.5], [0.05, 1.05 * R]]), A([R, R]), a, b,
-                                    None, m))                         # one pair near: all near
-    assert bool(dem.walls_apart(A([[0.05, 0.5], [0.05, 1.05 * R]]), A([R, R]), a, b, None, m,
-                                jnp.asarray([False, True])))          # a held disc: ignored
+    two = A([[0.05, 0.5], [0.05, 1.05 * R]])
+    assert list(np.asarray(dem.walls_near(two, A([R, R]), a, b, None, m))) == [False, True]
+    held = dem.walls_near(two, A([R, R]), a, b, None, m, jnp.asarray([False, True]))
+    assert not np.asarray(held).any()                                 # a held disc: apart
 
 
-def test_walls_apart_discs_moved_within_the_margin_never_touch():
+def test_discs_apart_from_the_walls_moved_within_the_margin_never_touch():
     """Discs the test calls apart, each moved by up to the margin in any direction, have no
     overlap with a one-sided or two-sided floor; the pair just past the 2R reach behind the
     line (d = 2.05R, m = 0.1R) touches once moved up by m, so the test must call it near."""
@@ -351,7 +356,7 @@ def test_walls_apart_discs_moved_within_the_margin_never_touch():
     x = np.column_stack([rng.uniform(-4 * R, 0.1 + 4 * R, 4000), rng.uniform(-5 * R, 5 * R, 4000)])
     for side in (None, 1.0, -1.0):
         sd = None if side is None else A([side])
-        ok = np.asarray(jax.vmap(lambda p: dem.walls_apart(p[None], A([R]), a, b, sd, m))(A(x)))
+        ok = np.asarray(jax.vmap(lambda p: _apart(p[None], A([R]), a, b, sd, m))(A(x)))
         assert 0.3 < ok.mean() < 0.95                  # both answers occur in the sample
         ang = rng.uniform(0, 2 * np.pi, x.shape[0])
         moved = x + m * rng.uniform(0, 1, x.shape[0])[:, None] * np.column_stack(
@@ -360,7 +365,7 @@ def test_walls_apart_discs_moved_within_the_margin_never_touch():
         assert np.all(np.asarray(delta)[ok, 0] <= 0.0)
     touch = floor_contacts([[0.05, -2.05 * R + 0.1 * R]], 1.0)[3]
     assert touch[0, 0] > 0 and not bool(
-        dem.walls_apart(A([[0.05, -2.05 * R]]), A([R]), a, b, A([1.0]), 0.1 * R))
+        _apart(A([[0.05, -2.05 * R]]), A([R]), a, b, A([1.0]), 0.1 * R))
 
 
 def test_box_walls_face_inwards():

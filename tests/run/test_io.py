@@ -236,18 +236,19 @@ def test_resume_restores_contacts_and_bonds_bitwise(tmp_path):
             assert np.array_equal(v, getattr(b, phase)[k]), (phase, k)
 
 
-def test_resume_without_the_walls_apart_flag(tmp_path):
-    """A file whose checkpoint lacks WallState.apart (written before it existed) resumes
-    with the walls counted as near until the DEM list's next build: a grain fired at a
-    floor ends where the unbroken run ends (to round-off: the walls are evaluated, to zero,
-    in the steps the flag is unknown)."""
+def test_resume_without_the_discs_near_the_walls(tmp_path):
+    """A file whose checkpoint lacks WallState.near and n_near (written before they
+    existed) resumes with every disc's wall contacts evaluated until the DEM list's next
+    build: a grain fired at a floor ends where the unbroken run ends (to round-off: the
+    walls are evaluated, to zero, in the steps the discs near them are unknown)."""
     from fpsi_jax import cases
     sc = cases.build("wall_impact", t_end=2e-3)
     whole, part = tmp_path / "whole.h5", tmp_path / "part.h5"
     simulate(sc, t_end=2e-3, every=5e-4, output=str(whole), progress=False)
     simulate(sc, t_end=5e-4, every=5e-4, output=str(part), progress=False)
     with h5py.File(part, "a") as f:
-        del f["checkpoint"][".walls.apart"]
+        del f["checkpoint"][".walls.near"]
+        del f["checkpoint"][".walls.n_near"]
     simulate(sc, t_end=2e-3, every=5e-4, resume=str(part), progress=False)
     a, b = io.read(whole), io.read(part)
     assert a.frames == b.frames == 5

@@ -343,33 +343,63 @@ def test_substeps_equal_small_single_steps_of_the_discs():
 
 
 @x64
-def test_walls_skipped_while_apart_change_nothing():
-    """WallState.apart skips the wall contacts while no disc can touch a wall: a grain fired
-    at a floor (cases.wall_impact) takes the same path (to round-off: the two programs fuse
-    differently) as with the walls evaluated in every step, through its approach (skipped), the impact and the rebound
-    (skipped again once its list is rebuilt clear of the floor)."""
+def test_walls_of_the_discs_near_them_only_change_nothing():
+    """WallState.near limits the wall contacts to the discs that can reach a wall before
+    the DEM list's next build: a grain fired at a floor (cases.wall_impact) takes the same
+    path (to round-off: the programs fuse differently) as with every disc's wall contacts
+    evaluated in every step, through its approach (no disc near: none evaluated), the
+    impact (the grain listed) and the rebound (none again once its list is rebuilt clear
+    of the floor); with more discs near than ``near`` has room for, every disc's."""
     sc = cases.build("wall_impact", t_end=2e-3)
     phys, params = setup(sc, x64=True)
     p = params.as_arrays(jnp.float64)
     st = init.init_state(sc, phys, p)
-    assert st.walls.apart is not None and bool(st.walls.apart)
+    assert st.walls.near is not None and int(st.walls.n_near) == 0
     n = int(round(sc.t_end / float(p.dt)))
 
     def run(s0):
         def body(s, _):
             s = forward.step(phys, s, p)
-            apart = s.walls.apart if s.walls.apart is not None else jnp.asarray(False)
-            return s, (apart, s.solid.x[0], s.solid.v[0])
+            n_near = s.walls.n_near if s.walls.n_near is not None else jnp.asarray(-1)
+            return s, (n_near, s.solid.x[0], s.solid.v[0])
         return jax.lax.scan(body, s0, None, length=n)[1]
 
     run = jax.jit(run)
-    apart, x, v = (np.asarray(a) for a in run(st))
-    _, x_all, v_all = (np.asarray(a) for a in run(st.replace(walls=st.walls.replace(apart=None))))
-    np.testing.assert_allclose(x, x_all, rtol=1e-13, atol=0)
-    np.testing.assert_allclose(v, v_all, rtol=1e-13, atol=1e-13)
+    n_near, x, v = (np.asarray(a) for a in run(st))
+    _, x_all, v_all = (np.asarray(a) for a in run(st.replace(walls=st.walls.replace(
+        near=None, n_near=None))))
+    _, x_over, v_over = (np.asarray(a) for a in run(st.replace(walls=st.walls.replace(
+        n_near=jnp.asarray(2 ** 30, jnp.int32)))))
+    for got, want in ((x, x_all), (x_over, x_all)):
+        np.testing.assert_allclose(got, want, rtol=1e-13, atol=0)
+    for got, want in ((v, v_all), (v_over, v_all)):
+        np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-13)
     assert v[0, 1] < 0 < v[-1, 1]                                # it did bounce
-    flips = np.flatnonzero(np.diff(apart.astype(int)))
-    assert apart[0] and apart[-1] and len(flips) == 2            # apart, near, apart
+    near = n_near > 0
+    flips = np.flatnonzero(np.diff(near.astype(int)))
+    assert not near[0] and not near[-1] and len(flips) == 2      # apart, near, apart
+    assert set(np.unique(n_near)) == {0, 1}
+
+
+def test_walls_near_lists_the_free_discs_within_reach():
+    """stages.walls_near: the free discs within reach of a wall (skin/2 past contact),
+    padded with n_solid, and their count; a kinematic disc never counts."""
+    sc = cases.build("wall_impact", t_end=2e-3)
+    phys, params = setup(sc)
+    st = init.init_state(sc, phys, params.as_arrays(jnp.float32))
+    s, w = st.solid, st.walls
+    r = float(s.radius[0])
+    half = 0.5 * phys.dem_neighbors.skin
+    floor = float(jnp.min(jnp.minimum(w.a[:, 1], w.b[:, 1])))
+    for y, want in ((floor + r + 0.5 * half, 1), (floor + r + 2.0 * half, 0)):
+        x = s.x.at[0, 1].set(y)
+        rows, count = stages.walls_near(phys, s.replace(x=x), w, x)
+        assert int(count) == want
+        assert rows.shape == (stages.wall_capacity(phys),)
+        assert list(np.asarray(rows)) == [0] * want + [s.x.shape[0]] * (rows.shape[0] - want)
+    x = s.x.at[0, 1].set(floor + r)
+    rows, count = stages.walls_near(phys, s.replace(x=x, fixed=s.fixed.at[0].set(True)), w, x)
+    assert int(count) == 0
 
 
 def _grain_run(phys, p, st, n):
