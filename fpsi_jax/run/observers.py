@@ -26,7 +26,9 @@ def mean_of(x, idx, axis: int | None = None):
 def mean_position(idx, axis: int | None = None, phase: str = "solid"):
     """observe(state) = mean position of the particles ``idx`` of ``phase``: (2,), or the
     component ``axis`` alone."""
-    ii = jnp.asarray(indices(idx))
+    # a numpy int32 constant, not a jax array: one made while a float64 run had x64 on is
+    # int64, and a float32 run tracing it later warned that int64 is not available
+    ii = indices(idx).astype(np.int32)
     if axis is None:
         return lambda s: jnp.mean(getattr(s, phase).x[ii], axis=0)
     return lambda s: jnp.mean(getattr(s, phase).x[ii, axis])
