@@ -41,6 +41,7 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..model.config import Physics
 from ..model.options import BoundaryPressure, FpiPressure, FsiMethod
@@ -127,8 +128,10 @@ def walls_near(phys: Physics, solid, walls, x):
     n = x.shape[0]
     c = wall_capacity(phys) if walls.near is None else walls.near.shape[0]
     held = solid.fixed
-    if phys.moving_discs:
-        held = held | ~jnp.zeros(n, bool).at[_moving_rows(phys)].set(True)
+    if phys.moving_discs:                   # the kinematic discs: a constant of the scene
+        kinematic = np.ones(n, bool)
+        kinematic[list(phys.moving_discs)] = False
+        held = held | kinematic
     near = dem.walls_near(x, solid.radius, walls.a, walls.b, walls.side,
                           0.5 * phys.dem_neighbors.skin, held)
     rows = jnp.nonzero(near, size=c, fill_value=n)[0].astype(jnp.int32)
