@@ -9,6 +9,7 @@ import pytest
 from fpsi_jax import cases
 from fpsi_jax.model.config import Parking, Physics
 from fpsi_jax.model.errors import ParameterError
+from fpsi_jax.model.state import FluidState
 from fpsi_jax.run.driver import simulate
 from fpsi_jax.solver import exits
 
@@ -44,6 +45,26 @@ def test_open_sides_are_checked():
     sc.open_sides = ("top", "up")
     with pytest.raises(ParameterError, match="open_sides = 'up'.*left, right, bottom, top"):
         sc.validate()
+
+
+def test_leavers_take_the_next_free_spots_in_the_order_they_leave():
+    # four particles; the 2nd and 4th leave in one step (spots 0 and 1), the 1st in a later
+    # one (spot 2); a step with nobody leaving moves nobody
+    phys = _phys(("top",))
+    x = jnp.array([[0.1, 1.0], [0.2, 2.5], [0.3, 1.0], [0.4, 2.2]])
+    one = jnp.ones(4)
+    fluid = FluidState(x=x, v=jnp.ones_like(x), rho=one, h=one, mass=one, acc=jnp.ones_like(x),
+                       xsph=jnp.ones_like(x), t_out=-one)
+    spot = np.asarray(exits.park_positions(phys.parking, 0, 3, jnp.float32))
+    f1 = exits.park_fluid(phys, fluid, 0.5)
+    np.testing.assert_allclose(np.asarray(f1.x), [x[0], spot[0], x[2], spot[1]])
+    np.testing.assert_array_equal(np.asarray(f1.t_out), [-1, 0.5, -1, 0.5])
+    np.testing.assert_array_equal(np.asarray(f1.v)[:, 0], [1, 0, 1, 0])
+    same = exits.park_fluid(phys, f1, 0.6)
+    np.testing.assert_array_equal(np.asarray(same.x), np.asarray(f1.x))
+    f2 = exits.park_fluid(phys, f1.replace(x=f1.x.at[0, 1].set(2.1)), 0.7)
+    np.testing.assert_allclose(np.asarray(f2.x), [spot[2], spot[0], x[2], spot[1]])
+    np.testing.assert_allclose(np.asarray(f2.t_out), [0.7, 0.5, -1, 0.5], rtol=1e-7)
 
 
 @pytest.fixture(scope="module")
