@@ -58,7 +58,7 @@ def bench(name, steps, repeats, **kw):
             "t_timed_to": float(st.t), "compile_s": compile_s, "wall_s": wall,
             "wall_s_all": walls, "steps_per_s": steps / wall,
             "steps_per_s_best": steps / min(walls), "particle_steps_per_s": n * steps / wall,
-            "rebuilds": int(st.status.rebuilds) - int(start.status.rebuilds),
+            "rebuilds": int(st.status.dem_rebuilds) - int(start.status.dem_rebuilds),
             "regrowths_while_timing": regrowths, "steps_timed": steps * repeats}
 
 

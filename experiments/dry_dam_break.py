@@ -81,7 +81,7 @@ def main():
     print(f"wall {res.wall_s:.1f} s (compile + first chunk of {res.first_chunk_steps} steps "
           f"{res.compile_s:.1f} s); after it {steps_after / run_s:.0f} steps/s, "
           f"{res.particle_steps_per_s / 1e6:.3f} M particle-steps/s; overall "
-          f"{res.n_steps / res.wall_s:.0f} steps/s; {res.rebuilds} neighbour rebuilds, "
+          f"{res.n_steps / res.wall_s:.0f} steps/s; {res.dem_rebuilds} neighbour rebuilds, "
           f"{res.reallocations} reallocations")
 
     x0 = np.asarray(scene.solid.x).mean(axis=0)

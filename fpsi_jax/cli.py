@@ -119,10 +119,12 @@ def cmd_run(args):
              + (" (compile included: every step was in the first chunk)"
                 if res.throughput_includes_compile else ""))
     left = f", {res.excluded} particles left through open sides" if res.excluded else ""
+    lists = ([f"{res.rebuilds} SPH"] if res.physics.has_fluid else []) + (
+        [f"{res.dem_rebuilds} DEM"] if res.physics.has_solid else [])
     print(f"{scene.name}: {res.n_steps} steps of {float(res.params.dt):.4g} s{sub}, "
           f"{scene.n_particles} particles{left}, wall {res.wall_s:.1f} s "
           f"(compile+first chunk {res.compile_s:.1f} s), {speed}, "
-          f"{res.rebuilds} neighbour rebuilds")
+          f"{' and '.join(lists)} neighbour-list rebuilds")
     if out:
         extra = f" and {os.path.splitext(out)[0]}_probes.csv" if probes else ""
         print(f"wrote {out}, {io.sidecar(out)}{extra}")

@@ -160,7 +160,7 @@ class Status:
     h_exceeded              a smoothing length outgrew the neighbour cut-off (redo)
     redo_step               first step not computed exactly: an overflow's step, or the step
                             after h outgrew the cut-off (−1: none)
-    rebuilds                number of neighbour-list rebuilds so far
+    rebuilds, dem_rebuilds  rebuilds of the SPH and of the DEM neighbour list so far
     sph_need, dem_need      (3,) int32: the most neighbours of a particle, the most
                             particles in a cell and the most neighbours of a wall row
                             (NeighborConfig.fluid_only_rows) that any rebuild of the SPH /
@@ -179,6 +179,7 @@ class Status:
     sph_need: Any
     dem_need: Any
     dem_stale: Any = None
+    dem_rebuilds: Any = None
 
     @staticmethod
     def ok():
@@ -186,7 +187,7 @@ class Status:
         f = jnp.zeros((), bool)
         return Status(bad=f, step=z - 1, particle=z - 1, code=z, overflow=f, h_exceeded=f,
                       rebuilds=z, redo_step=z - 1, sph_need=jnp.zeros((3,), jnp.int32),
-                      dem_need=jnp.zeros((3,), jnp.int32), dem_stale=f)
+                      dem_need=jnp.zeros((3,), jnp.int32), dem_stale=f, dem_rebuilds=z)
 
     def must_redo(self) -> bool:
         """Host side: the chunk must be redone with larger lists, i.e. a list overflowed

@@ -49,13 +49,14 @@ class Result:
     n_steps: int
     wall_s: float
     compile_s: float
-    rebuilds: int
+    rebuilds: int                    # of the SPH neighbour list
     reallocations: int
     observations: object = None
     output: str | None = None
     first_chunk_steps: int = 0
     probes: dict | None = None       # probe name -> (n_steps, k) values after every step
     steps_run: int | None = None     # steps this call ran (n_steps less a resumed start)
+    dem_rebuilds: int = 0            # of the DEM neighbour list
 
     @property
     def times(self) -> np.ndarray:
@@ -397,6 +398,7 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
             observations, probe_values = observations
     return Result(state=state, physics=phys, params=params, n_steps=done, wall_s=wall,
                   compile_s=compile_s, rebuilds=int(state.status.rebuilds),
+                  dem_rebuilds=int(state.status.dem_rebuilds),
                   reallocations=reallocs, observations=observations, output=output,
                   first_chunk_steps=first, probes=probe_values,
                   steps_run=done - (ck and int(ck.leaves[".step"]) or 0))

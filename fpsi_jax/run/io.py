@@ -475,8 +475,9 @@ def load_checkpoint(path) -> Checkpoint:
                           status=str(f.attrs.get("status", "")))
 
 
-#: state leaves that only size regrown neighbour lists; a checkpoint without them resumes
-_RUN_TALLIES = (".status.sph_need", ".status.dem_need")
+#: state leaves that only size regrown neighbour lists or count rebuilds; a checkpoint
+#: without them resumes with them at 0
+_RUN_TALLIES = (".status.sph_need", ".status.dem_need", ".status.dem_rebuilds")
 #: state leaves a checkpoint may lack, with the value that is always safe (None: the fresh
 #: state's own): every disc's wall contacts are then evaluated until the DEM list's next
 #: rebuild asks which discs are near a wall again

@@ -262,7 +262,7 @@ def _dem_list_update(phys: Physics, state: State, rebuild_now=None) -> State:
     st = state.status
     return state.replace(
         solid_nbrs=nbrs, walls=walls, solid=s.replace(shear=shear),
-        status=st.replace(rebuilds=st.rebuilds + rebuilt.astype(jnp.int32),
+        status=st.replace(dem_rebuilds=st.dem_rebuilds + rebuilt.astype(jnp.int32),
                           overflow=st.overflow | nbrs.did_buffer_overflow.astype(bool),
                           dem_need=jnp.maximum(st.dem_need, need)))
 

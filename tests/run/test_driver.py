@@ -98,6 +98,28 @@ def test_a_stale_dem_list_is_redone_with_the_test_at_every_substep():
                                   np.asarray(strict.state.solid.x))
 
 
+def test_the_sph_and_the_dem_list_rebuilds_are_counted_apart():
+    """A grain sinking through water with thin skins on both lists: Status.rebuilds counts
+    up at the steps at which the SPH list's reference positions change, Status.dem_rebuilds
+    at those of the DEM list, and the Result reports both."""
+    from ..small_scenes import grain_scene
+    sc = grain_scene(x64=False, rho_grain=2500.0)
+    opts = dict(skin=0.02, dem_skin=0.1, h_margin=1.5)     # nothing regrown
+    phys, params = setup(sc, **opts)
+
+    def seen(s):
+        return (jnp.sum(s.nbrs.reference_position), s.status.rebuilds,
+                jnp.sum(s.solid_nbrs.reference_position), s.status.dem_rebuilds)
+
+    res = simulate(sc, t_end=80 * params.dt, progress=False, observe=seen, **opts)
+    assert res.reallocations == 0          # a reallocated list starts anew uncounted
+    ref, count, dem_ref, dem_count = (np.asarray(o) for o in res.observations)
+    np.testing.assert_array_equal(np.diff(count), np.diff(ref) != 0)
+    np.testing.assert_array_equal(np.diff(dem_count), np.diff(dem_ref) != 0)
+    assert np.sum(np.diff(ref) != 0) >= 3 and np.sum(np.diff(dem_ref) != 0) >= 3
+    assert (res.rebuilds, res.dem_rebuilds) == (count[-1], dem_count[-1])
+
+
 def test_overflow_is_redone_and_equals_a_large_allocation(tmp_path):
     # a thin skin (0.1 h), so the compression outgrows the list within the 24 steps
     out = tmp_path / "tight.h5"

@@ -212,7 +212,7 @@ def test_momentum_and_angular_momentum_conserved(cluster_run):
     sc, phys, p, st, end, (P, L, nc) = cluster_run
     assert not bool(end.status.overflow) and not bool(end.status.bad)
     assert nc.max() >= 10                      # many frictional contacts
-    assert int(end.status.rebuilds) >= 1
+    assert int(end.status.dem_rebuilds) >= 1
     m = np.asarray(st.solid.mass)
     scale = float(np.sum(m * np.linalg.norm(np.asarray(st.solid.v), axis=1)))
     P0 = (m[:, None] * np.asarray(st.solid.v)).sum(0)
