@@ -12,8 +12,9 @@ state, the median of ``--reps`` compiled chunks of ``--steps`` of
 * the DEM part alone (``stages.discs``: all sub-steps of a step),
 * a forced rebuild of the SPH list (positions nudged every time so nothing is hoisted),
 
-and the rebuild interval seen in the whole-step chunk. ``--wall-rows`` adds, in the same
-process and interleaved chunk by chunk, the whole step with the wall rows read at the
+and the SPH list's rebuild interval seen in the whole-step chunk (``Status.rebuilds``;
+the DEM list's rebuilds, ``Status.dem_rebuilds``, are counted apart). ``--wall-rows``
+adds, in the same process and interleaved chunk by chunk, the whole step with the wall rows read at the
 width setup measured (NeighborConfig.wall_width) against the same step reading all K
 slots (wall_width 0), each the median of ``--reps`` chunks; ``--wall-widths 15 22 25`` the
 step at each of those widths; ``--walls-near`` the step and its DEM part with the DEM wall
@@ -127,7 +128,8 @@ def bench(name, warm, steps, reps, profile, wall_rows=False, walls_near=False,
            "step_ms": _median_ms(whole, state, steps, reps),
            "discs_ms": _median_ms(dem, state, steps, reps),
            "rebuild_ms": _median_ms(rebuild, (state.nbrs, x0), steps, reps),
-           "rebuilds_in_chunk": int(end.status.rebuilds - state.status.rebuilds)}
+           "rebuilds_in_chunk": int(end.status.rebuilds - state.status.rebuilds),
+           "dem_rebuilds_in_chunk": int(end.status.dem_rebuilds - state.status.dem_rebuilds)}
     row["substep_us"] = row["discs_ms"] / phys.dem_substeps * 1e3
     row["rebuild_share"] = (row["rebuild_ms"] * row["rebuilds_in_chunk"] / steps
                             / row["step_ms"])
@@ -199,7 +201,8 @@ def main():
               f"({r['dem_substeps']} sub-steps of {r['substep_us']:.0f} us, "
               f"{r['n_discs']} discs); SPH rebuild {r['rebuild_ms']:.2f} ms every "
               f"{args.steps / max(r['rebuilds_in_chunk'], 1):.1f} steps "
-              f"({100 * r['rebuild_share']:.0f} % of the step)", flush=True)
+              f"({100 * r['rebuild_share']:.0f} % of the step); DEM list rebuilt "
+              f"{r['dem_rebuilds_in_chunk']} times in {args.steps} steps", flush=True)
         if args.wall_rows:
             print(f"    wall rows read at {r['wall_width']} of {r['sph_capacity']} slots: step "
                   f"{r['step_ms_wall_rows_narrow']:.2f} ms against "
