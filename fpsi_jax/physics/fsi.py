@@ -75,29 +75,11 @@ def approximate_pressure(kern, n_fluid, x, h, rho, p, mass, idx_s):
     return ps
 
 
-def reaction(pair_acc, mass_f, idx_f, idx_s, first):
-    """Force of the fluid on each structure particle: −Σ m_F a_{F←S} over the pairs whose
-    neighbour is S (W6.1). ``pair_acc`` (n_f, K, 2) is the acceleration each pair gives the
-    fluid row F (rows ``idx_f`` (n_f, K)); ``idx_s`` (n_s, K_s) are the structure rows of the
-    same list, S = ``first`` + row, at any width that holds their listed neighbours
-    (NeighborConfig.wall_width).
-
-    The sum is read from the structure's side: the list is symmetric (one cut-off, one
-    build), so each fluid neighbour F of S holds S in exactly one slot of its own row, found
-    by comparing that row with S; the pair's term is gathered from there. Every
-    fluid–structure pair term is counted once, so the result is minus the fluid's share up to
-    the order of additions. (A scatter-add of all n_f·K pair terms onto the few structure
-    particles did the same at 0.8 ms a step for the elastic gate; this costs
-    n_s·K_s·K compares.)"""
-    n_f, n_s = idx_f.shape[0], idx_s.shape[0]
-    is_f = idx_s < n_f
-    f = jnp.where(is_f, idx_s, 0)
-    me = first + jnp.arange(n_s, dtype=idx_s.dtype)
-    k = idx_f.shape[1]
-    # 1 + the slot of S in row F (0: absent); a plain integer sum, as each row holds S once
-    code = jnp.sum(jnp.where(idx_f[f] == me[:, None, None],
-                             jnp.arange(1, k + 1, dtype=jnp.int32), 0), axis=-1)
-    slot = jnp.maximum(code - 1, 0)
-    found = is_f & (code > 0)
-    term = mass_f[f][..., None] * pair_acc[f, slot]         # (n_s, K, 2)
-    return -jnp.sum(jnp.where(found[..., None], term, 0.0), axis=1)
+def reaction(acc_pairs, mass_f, found):
+    """Force of the fluid on each structure particle S: F_S = −Σ_F m_F a_{F←S} over its
+    fluid neighbours F (W6.1). ``acc_pairs`` (n_s, K, 2) is the acceleration the momentum
+    pair law gives F from S, computed as F's own row computes it (solver.stages
+    .structure_reaction), ``mass_f`` (n_s, K) m_F, ``found`` (n_s, K) the slots that hold a
+    fluid neighbour. Every fluid–structure pair term is counted once, so Σ_S F_S is minus
+    the structure's share of Σ_F m_F a_F up to the order of additions."""
+    return -jnp.sum(jnp.where(found[..., None], mass_f[..., None] * acc_pairs, 0.0), axis=1)

@@ -49,9 +49,13 @@ class Pairs(NamedTuple):
     rho_j: jax.Array    # ρ_j at the start of the step
     vol_j: jax.Array    # m_j/ρ_j, the neighbour's volume (divided once per particle)
     row0: Any = 0       # index of the first row (a traced scalar inside :func:`over_row_blocks`)
+    rows: Any = None    # (n_rows,) the rows' particles where they are not a run (pairs_at)
 
     def own(self, a):
-        """The rows' own entries of an all-particle array ``a``: a[row0 : row0 + rows]."""
+        """The rows' own entries of an all-particle array ``a``: a[row0 : row0 + rows], or
+        a[rows] for the rows of :func:`pairs_at`."""
+        if self.rows is not None:
+            return a[self.rows]
         return rows_of(a, self.row0, self.idx.shape[0])
 
 
@@ -114,9 +118,21 @@ def pair_table(x, v, h, m, rho):
 def pairs_of(kern, n_fluid, table, idx, row0=0) -> Pairs:
     """Pair geometry for the rows ``idx`` (particles row0 … row0 + idx.shape[0] − 1) from a
     :func:`pair_table`: one packed gather of the neighbours' rows."""
-    rows = idx.shape[0]
-    nbr = table[idx]                                      # (rows, K, 8)
-    own = rows_of(table, row0, rows)
+    return _pairs(kern, n_fluid, rows_of(table, row0, idx.shape[0]), table[idx], idx, row0)
+
+
+def pairs_at(kern, n_fluid, table, rows, idx) -> Pairs:
+    """Pair geometry of rows whose particles are ``rows`` (n,), any particles in any order,
+    with the neighbours ``idx`` (n, K): term for term what :func:`pairs_of` gives those
+    particles' own rows. The fluid's force on a structure is read this way, each
+    fluid–structure pair a row of the fluid particle with the structure particle as its
+    one neighbour (solver.stages.structure_reaction)."""
+    return _pairs(kern, n_fluid, table[rows], table[idx], idx, 0, rows)
+
+
+def _pairs(kern, n_fluid, own, nbr, idx, row0, rows=None) -> Pairs:
+    """Pairs from the rows' own table entries ``own`` (n, 8) and their neighbours' ``nbr``
+    (n, K, 8)."""
     dx = own[:, None, 0:2] - nbr[..., 0:2]
     r2 = jnp.sum(dx * dx, axis=-1)
     hij = 0.5 * (own[:, 4, None] + nbr[..., 4])
@@ -124,7 +140,7 @@ def pairs_of(kern, n_fluid, table, idx, row0=0) -> Pairs:
     f = kern.grad_factor(r2, hij)
     vij = own[:, None, 2:4] - nbr[..., 2:4]
     return Pairs(idx, idx < n_fluid, dx, r2, hij, w, f, vij, nbr[..., 5], nbr[..., 6],
-                 nbr[..., 7], row0)
+                 nbr[..., 7], row0, rows)
 
 
 #: fewer blocks than this are done as one pass: below ~40k rows the arrays of all rows still

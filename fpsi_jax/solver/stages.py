@@ -49,7 +49,8 @@ from ..model.params import Params
 from ..model.state import State
 from ..physics import bonds as bonds_law
 from ..physics import boundary, dem, eos, fpi, fsi, kernels, sph
-from ..physics.pairs import gather, over_row_blocks, pair_table, pairs_of, rows_of, take_rows
+from ..physics.pairs import (gather, over_row_blocks, pair_table, pairs_at, pairs_of, rows_of,
+                             take_rows)
 from . import exits, health, neighbors
 
 
@@ -470,13 +471,15 @@ def _all(state: State, fluid_value, name: str):
     return _cat(fluid_value, _opt(state.boundary, name), _opt(state.fsi, name))
 
 
-def pair_pass(phys: Physics, fam: SphFamily, rho_c_all, fn):
+def pair_pass(phys: Physics, fam: SphFamily, rho_c_all, fn, table=None):
     """fn(Pairs) over the fluid rows of the SPH list, in row blocks of ``phys.pair_block``
     (pairs.over_row_blocks): the pair geometry of each block (pairs.pairs, with ρ of the
     volumes m_j/ρ_j from ``rho_c_all``) is built where it is summed, so the density pass and
-    the momentum pass each recompute it rather than reading it back from memory."""
+    the momentum pass each recompute it rather than reading it back from memory. ``table``:
+    the family's pair_table, where the caller has built it already."""
     kern = kernels.get(phys.kernel)
-    table = pair_table(fam.x, fam.v, fam.h, fam.m, rho_c_all)
+    if table is None:
+        table = pair_table(fam.x, fam.v, fam.h, fam.m, rho_c_all)
 
     def block(row0, rows):
         return fn(pairs_of(kern, phys.n_fluid, table, rows_of(fam.idx, row0, rows), row0))
@@ -668,19 +671,40 @@ def fluid_momentum(phys: Physics, params: Params, state: State, fam: SphFamily, 
                        None if fs is None else jnp.ones_like(fs.rho))
     shared = lvl.eps is not None and phys.fpi_pressure is FpiPressure.SHARED
     rho_all, p_all = _all(state, lvl.rho, "rho"), _all(state, lvl.p, "p")
-    out = pair_pass(phys, fam, rho_c_all, lambda pr: sph.momentum_rate(
-        phys, kernels.get(phys.kernel), params.sph, jnp.asarray(params.gravity),
-        rho_all, p_all, pr, with_pairs=fs is not None, eps=eps_all,
-        structure_bracket=bracket, shared=shared, h=fam.h, dt=params.dt))
-    acc, xs, pair = out[:3]
+    def rate(pr, gravity):
+        return sph.momentum_rate(phys, kernels.get(phys.kernel), params.sph, gravity, rho_all,
+                                 p_all, pr, eps=eps_all, structure_bracket=bracket,
+                                 shared=shared, h=fam.h, dt=params.dt)
+
+    table = pair_table(fam.x, fam.v, fam.h, fam.m, rho_c_all)
+    out = pair_pass(phys, fam, rho_c_all, lambda pr: rate(pr, jnp.asarray(params.gravity)),
+                    table)
+    acc, xs = out[:2]
     if fs is not None:
         with jax.named_scope("fsi.reaction"):
-            idx_s = neighbors.wall_rows(phys.neighbors, state.nbrs.idx, first,
-                                        phys.n_structure)
-            fs = fs.replace(force=fsi.reaction(pair, state.fluid.mass,
-                                               fam.idx[:phys.n_fluid], idx_s, first))
+            fs = fs.replace(force=structure_reaction(
+                phys, fam, table, lambda pr: rate(pr, jnp.zeros_like(acc[0]))[0]))
     state = state.replace(fluid=state.fluid.replace(acc=acc, xsph=xs), fsi=fs)
     return state, (out[3] if shared else None)
+
+
+def structure_reaction(phys: Physics, fam: SphFamily, table, fluid_rate):
+    """The fluid's force on each structure particle, −Σ_F m_F a_{F←S} (fsi.reaction), with
+    each fluid–structure pair's term computed as the fluid particle's own row computes it:
+    the structure rows of the list (their fluid neighbours, NeighborConfig.wall_width)
+    give the pairs, and each pair becomes a row of one slot whose particle is F and whose
+    neighbour is S (pairs.pairs_at), passed through ``fluid_rate`` (the momentum pass's own
+    pair law, without gravity). The momentum pass over the fluid rows then writes no
+    per-pair array: keeping its (n_f, K, 2) pair accelerations for this sum cost the elastic
+    gate a quarter of its step (docs/performance.md)."""
+    first, n_s = fam.first_s, phys.n_structure
+    idx_s = neighbors.wall_rows(phys.neighbors, fam.idx, first, n_s)
+    found = idx_s < phys.n_fluid
+    f = jnp.where(found, idx_s, 0).reshape(-1)
+    s = jnp.broadcast_to(first + jnp.arange(n_s, dtype=idx_s.dtype)[:, None],
+                         idx_s.shape).reshape(-1, 1)
+    acc = fluid_rate(pairs_at(kernels.get(phys.kernel), phys.n_fluid, table, f, s))
+    return fsi.reaction(acc.reshape(idx_s.shape + (2,)), fam.m[f].reshape(idx_s.shape), found)
 
 
 def grain_forces(phys: Physics, params: Params, state: State, fam: SphFamily,

@@ -207,14 +207,15 @@ def test_force_on_structure_is_the_exact_reaction(method):
     np.testing.assert_allclose(ma.sum(0) + f.sum(0), 0.0, atol=1e-12 * scale)
 
 
-def test_reaction_counts_each_pair_once():
-    """2 fluid rows (0, 1), structure particles 2 and 3, padding 4: fluid 0 sees both, fluid 1
-    sees 3 (and fluid 0); the structure rows list their fluid neighbours in another order."""
-    pair = jnp.asarray(np.arange(12, dtype=float).reshape(2, 3, 2))
-    idx_f = jnp.asarray([[2, 3, 4], [3, 0, 4]])
-    idx_s = jnp.asarray([[4, 0, 4], [1, 4, 0]])
-    out = fsi.reaction(pair, jnp.asarray([1.0, 2.0]), idx_f, idx_s, 2)
-    np.testing.assert_allclose(np.asarray(out), [[-0.0, -1.0], [-(2 + 2 * 6), -(3 + 2 * 7)]])
+def test_reaction_sums_minus_mass_times_pair_acceleration_over_found_slots():
+    """Structure particle 0 lists fluid in slots 0 and 2, particle 1 in slot 1 only (the rest
+    padding): F_S = −Σ m_F a_{F←S} over the slots that hold fluid."""
+    acc = jnp.asarray(np.arange(12, dtype=float).reshape(2, 3, 2))
+    mass = jnp.asarray([[1.0, 5.0, 2.0], [7.0, 3.0, 9.0]])
+    found = jnp.asarray([[True, False, True], [False, True, False]])
+    out = fsi.reaction(acc, mass, found)
+    np.testing.assert_allclose(np.asarray(out), [[-(0 + 2 * 4), -(1 + 2 * 5)],
+                                                 [-3 * 8, -3 * 9]])
 
 
 def test_gradient_of_structure_force_matches_finite_differences():

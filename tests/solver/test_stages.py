@@ -674,3 +674,44 @@ def test_transport_continuity_sees_the_xsph_motion():
     np.testing.assert_allclose(rate(off, st), 0.0, atol=1e-12)
     moved = st.replace(fluid=f.replace(v=f.v + f.xsph, xsph=jnp.zeros_like(x)))
     np.testing.assert_allclose(rate(on, st), rate(off, moved), rtol=1e-12, atol=1e-12)
+
+
+# --- the fluid's force on a structure -----------------------------------------------------
+@pytest.mark.parametrize("coupling", ["extrapolated", "pressure_gradient"])
+def test_structure_reaction_reads_each_pair_term_as_the_fluid_row_computes_it(coupling):
+    """stages.structure_reaction (each fluid–structure pair recomputed as a one-slot row of
+    the fluid particle) equals −Σ m_F a_{F←S} read from the per-pair accelerations the fluid
+    rows' own momentum pass writes (sph.momentum_rate(with_pairs=True)), found in each fluid
+    row by the structure particle's index: coarse plate, 40 steps into its run, float64."""
+    from fpsi_jax.physics import kernels, sph
+    from fpsi_jax.solver import neighbors
+    sc = coarse_plate(coupling=coupling, t_end=0.01)
+    phys, p, st = init_x64(sc)
+    st = forward.rollout(phys, st, p, 40)[0]
+    fam = stages.sph_family(phys, st)
+    rho_c = st.fluid.rho
+    rho_c_all = stages._all(st, rho_c, "rho")
+    lvl = stages.new_level(phys, p, st, fam, rho_c_all, p.dt)
+    st = stages.wall_pressure(phys, p, st, fam, lvl)
+    new = np.asarray(stages.fluid_momentum(phys, p, st, fam, rho_c_all, lvl)[0].fsi.force)
+
+    first, n_s, nf = fam.first_s, phys.n_structure, phys.n_fluid
+    bracket = None
+    if coupling == "pressure_gradient":
+        from fpsi_jax.physics import fsi
+        bracket = (lambda coef, p_i, ir_i, ir_j, ix:
+                   fsi.pressure_gradient_bracket(coef, p_i, ir_i, ir_j, ix, first, n_s))
+    rho_all, p_all = stages._all(st, lvl.rho, "rho"), stages._all(st, lvl.p, "p")
+    pair = stages.pair_pass(phys, fam, rho_c_all, lambda pr: sph.momentum_rate(
+        phys, kernels.get(phys.kernel), p.sph, jnp.asarray(p.gravity), rho_all, p_all, pr,
+        with_pairs=True, structure_bracket=bracket, h=fam.h, dt=p.dt))[2]
+    idx_f = np.asarray(fam.idx[:nf])
+    idx_s = np.asarray(neighbors.wall_rows(phys.neighbors, fam.idx, first, n_s))
+    m_f, pair = np.asarray(st.fluid.mass), np.asarray(pair)
+    old = np.zeros((n_s, 2))
+    for s in range(n_s):
+        for f in idx_s[s][idx_s[s] < nf]:
+            slot, = np.flatnonzero(idx_f[f] == first + s)
+            old[s] -= m_f[f] * pair[f, slot]
+    assert np.abs(old).sum() > 0
+    np.testing.assert_allclose(new, old, rtol=1e-9, atol=1e-12 * np.abs(old).max())
