@@ -682,12 +682,15 @@ def test_structure_reaction_reads_each_pair_term_as_the_fluid_row_computes_it(co
     """stages.structure_reaction (each fluid–structure pair recomputed as a one-slot row of
     the fluid particle) equals −Σ m_F a_{F←S} read from the per-pair accelerations the fluid
     rows' own momentum pass writes (sph.momentum_rate(with_pairs=True)), found in each fluid
-    row by the structure particle's index: coarse plate, 40 steps into its run, float64."""
+    row by the structure particle's index: coarse plate, fluid and plate given random
+    velocities (every viscous term on), float64."""
     from fpsi_jax.physics import kernels, sph
     from fpsi_jax.solver import neighbors
     sc = coarse_plate(coupling=coupling, t_end=0.01)
+    rng = np.random.default_rng(0)
+    sc.fluid.v = rng.normal(0.0, 0.05, sc.fluid.x.shape)
+    sc.solid.v = rng.normal(0.0, 0.02, sc.solid.x.shape)
     phys, p, st = init_x64(sc)
-    st = forward.rollout(phys, st, p, 40)[0]
     fam = stages.sph_family(phys, st)
     rho_c = st.fluid.rho
     rho_c_all = stages._all(st, rho_c, "rho")
