@@ -655,7 +655,8 @@ def wall_pressure(phys: Physics, params: Params, state: State, fam: SphFamily,
 def fluid_momentum(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c_all,
                    lvl: NewLevel):
     """The fluid's acceleration and XSPH correction (sph.momentum_rate: W43, K34–K39) at the
-    new level, and the reaction of the fluid–structure pairs on the structure (fsi.py).
+    new level, and the reaction of the fluid–structure pairs on the structure
+    (:func:`structure_reaction`, fsi.py).
     Returns (state, the grains' part of the cells' pressure force per unit fluid mass with
     the 'shared' pressure, else None)."""
     fs, b, first = state.fsi, state.boundary, phys.n_fluid + phys.n_boundary
@@ -671,6 +672,7 @@ def fluid_momentum(phys: Physics, params: Params, state: State, fam: SphFamily, 
                        None if fs is None else jnp.ones_like(fs.rho))
     shared = lvl.eps is not None and phys.fpi_pressure is FpiPressure.SHARED
     rho_all, p_all = _all(state, lvl.rho, "rho"), _all(state, lvl.p, "p")
+
     def rate(pr, gravity):
         return sph.momentum_rate(phys, kernels.get(phys.kernel), params.sph, gravity, rho_all,
                                  p_all, pr, eps=eps_all, structure_bracket=bracket,
