@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .pairs import FAR, gather, safe_sqrt, sum_neighbours
+from .pairs import FAR, gather, norm2, safe_sqrt, sum_neighbours
 
 
 def extrapolated_pressure(n_fluid, kern, gravity, x, h, rho, p, idx_b,
@@ -27,7 +27,7 @@ def extrapolated_pressure(n_fluid, kern, gravity, x, h, rho, p, idx_b,
     nbr = gather(jnp.concatenate([x, h[:, None], rho[:, None], p[:, None]], axis=1), idx_b,
                  fill=FAR)
     dx = xb[:, None, :] - nbr[..., 0:2]
-    r = safe_sqrt(jnp.sum(dx * dx, axis=-1))
+    r = safe_sqrt(norm2(dx))
     w = jnp.where(idx_b < n_fluid, kern.w(r, 0.5 * (hb[:, None] + nbr[..., 2])), 0.0)
     ab = jnp.zeros_like(xb) if acc_b is None else acc_b
     g_minus_a = gravity[None, :] - ab

@@ -68,7 +68,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 
 from ..model.options import Drag, Voidage
-from .pairs import gather, safe_sqrt, sum_neighbours, take_rows
+from .pairs import gather, norm2, safe_sqrt, sum_neighbours, take_rows
 
 ERGUN_LIMIT = 0.8        # W20: Ergun for ε ≤ 0.8, Wen–Yu above
 RE_NEWTON = 1000.0       # W22: C_d = 0.44 above
@@ -293,14 +293,14 @@ def grain_rows(kern, x_f, h_f, vol_f, x_p, idx_g, n_fluid, images=None) -> Grain
     j = jnp.where(valid, idx_g, n_fluid)
     nbr = gather(jnp.concatenate([x_f, h_f[:, None], vol_f[:, None]], axis=1), j)
     dx = x_p[:, None, :] - nbr[..., 0:2]
-    r2 = jnp.sum(dx * dx, axis=-1)
+    r2 = norm2(dx)
     w = jnp.where(valid, kern.w(safe_sqrt(r2), nbr[..., 2]), 0.0)
     f = jnp.where(valid, kern.grad_factor(r2, nbr[..., 2]), 0.0)
     ws = w
     if images is not None:
         x_img, on = images
         for k in range(x_img.shape[1]):
-            r_k = safe_sqrt(jnp.sum((x_img[:, None, k, :] - nbr[..., 0:2]) ** 2, axis=-1))
+            r_k = safe_sqrt(norm2(x_img[:, None, k, :] - nbr[..., 0:2]))
             ws = ws + jnp.where(valid & on[:, k:k + 1], kern.w(r_k, nbr[..., 2]), 0.0)
     return GrainRows(j, valid, w, jnp.where(valid, nbr[..., 3], 0.0), dx, f, ws)
 
@@ -354,7 +354,7 @@ def wall_share(kern, x_b, h_b, vol_b, x_p, idx_g, n_fluid):
     valid = (k >= 0) & (k < nb)
     nbr = gather(jnp.concatenate([x_b, h_b[:, None], vol_b[:, None]], axis=1),
                      jnp.where(valid, k, nb))
-    r = safe_sqrt(jnp.sum((x_p[:, None, :] - nbr[..., 0:2]) ** 2, axis=-1))
+    r = safe_sqrt(norm2(x_p[:, None, :] - nbr[..., 0:2]))
     return jnp.sum(jnp.where(valid, kern.w(r, nbr[..., 2]) * nbr[..., 3], 0.0), axis=1)
 
 

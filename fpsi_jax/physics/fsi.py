@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .pairs import FAR, gather, safe_sqrt
+from .pairs import FAR, gather, norm2, safe_sqrt
 
 
 def structure_mask(idx, first, n_structure):
@@ -69,7 +69,7 @@ def approximate_pressure(kern, n_fluid, x, h, rho, p, mass, idx_s):
     nbr = gather(jnp.concatenate([x, h[:, None], rho[:, None], p[:, None], mass[:, None]],
                                      axis=1), idx_s, fill=FAR)
     dx = xs[:, None, :] - nbr[..., 0:2]
-    r = safe_sqrt(jnp.sum(dx * dx, axis=-1))
+    r = safe_sqrt(norm2(dx))
     w = jnp.where(idx_s < n_fluid, kern.w(r, 0.5 * (hs[:, None] + nbr[..., 2])), 0.0)
     ps = jnp.sum(w * nbr[..., 4] * nbr[..., 5] / nbr[..., 3], axis=1)
     return ps

@@ -38,7 +38,7 @@ def continuity(rho_i, pr: Pairs):
 
 def continuity_pairs(pr: Pairs):
     """Pair terms (m_j/ρ_j) v_ij·∇_iW_ij of :func:`continuity` (without the factor ρ_i)."""
-    return pr.vol_j * jnp.sum(pr.vij * pr.dx, axis=-1) * pr.f
+    return pr.vol_j * (pr.vij[..., 0] * pr.dx[..., 0] + pr.vij[..., 1] * pr.dx[..., 1]) * pr.f
 
 
 def delta_pairs(delta, c0, rho_i, pr: Pairs, diffused=None, hydrostatic=None):
