@@ -1,13 +1,19 @@
-"""Cost per particle-step of the SPH dam break from ~7k to ~340k particles, with the pair
-passes and the list rebuild in row blocks (the CPU default, ``Physics.pair_block``) and in
-one pass over all rows (``pair_block = 0``), timed interleaved in one process.
+"""Cost per particle-step of the SPH dam break from ~7k to ~340k particles, three ways of
+cutting the pair passes and the list rebuild into row blocks, timed interleaved in one
+process:
+
+* ``default``: the pair passes in one pass over all rows (``Physics.pair_block`` 0) and
+  the rebuild's candidate pass in row blocks (``rebuild_block``, the CPU default: it takes
+  effect from ``pairs.MIN_BLOCKS`` blocks of rows),
+* ``one_pass``: both over all rows at once,
+* ``blocks``: both in row blocks of ``--block`` rows.
 
     .venv/bin/python experiments/sph_scaling.py [--dx 0.0029 0.00145 0.00072 0.00051 0.00036]
                                                 [--steps 100] [--reps 5]
 
 For each dx: the full-physics dam break (as bench_sph.py) at the derived step, a warm-up
 chunk (lists grown if they overflow), then ``--reps`` rounds of one chunk of each setting
-from the same warmed-up state, alternating; the median chunk of each. The two settings
+from the same warmed-up state, alternating; the median chunk of each. The settings
 compute the same step (tests/solver/test_stages.py: equal to round-off). Writes
 experiments/results/sph_scaling.csv and sph_scaling.png.
 """
@@ -22,7 +28,7 @@ import statistics
 import jax.numpy as jnp
 
 from fpsi_jax import cases, solver
-from fpsi_jax.model.config import default_pair_block
+from fpsi_jax.model.config import CPU_REBUILD_BLOCK
 from fpsi_jax.run.driver import setup
 
 from _bench import compile_and_warm_up
@@ -30,9 +36,14 @@ from _bench import compile_and_warm_up
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-def with_block(phys, block):
-    nb = dataclasses.replace(phys.neighbors, row_block=block)
-    return dataclasses.replace(phys, pair_block=block, neighbors=nb)
+#: (pair passes' block, rebuild's block) of each setting, given --block
+SETTINGS = {"default": lambda b: (0, b), "one_pass": lambda b: (0, 0),
+            "blocks": lambda b: (b, b)}
+
+
+def with_block(phys, pair_block, rebuild_block):
+    nb = dataclasses.replace(phys.neighbors, row_block=rebuild_block)
+    return dataclasses.replace(phys, pair_block=pair_block, neighbors=nb)
 
 
 def row(dx, steps, reps, block):
@@ -40,8 +51,8 @@ def row(dx, steps, reps, block):
     phys, params = setup(sc)
     p = params.as_arrays(jnp.float32)
     st = solver.init_state(sc, phys, p)
-    phys, st, chunk, _ = compile_and_warm_up(with_block(phys, 0), st, p, steps)
-    settings = {0: with_block(phys, 0), block: with_block(phys, block)}
+    phys, st, chunk, _ = compile_and_warm_up(with_block(phys, 0, 0), st, p, steps)
+    settings = {tag: with_block(phys, *f(block)) for tag, f in SETTINGS.items()}
     walls, ends = {b: [] for b in settings}, {}
     for ph in settings.values():            # compile each (untimed)
         chunk(ph, st)
@@ -53,11 +64,11 @@ def row(dx, steps, reps, block):
     n = sc.fluid.n + sc.boundary.n
     out = {"dx": dx, "n_particles": n, "n_fluid": sc.fluid.n,
            "neighbour_capacity": int(st.nbrs.idx.shape[1]), "steps": steps,
-           "rebuilds": int(ends[0].status.rebuilds - st.status.rebuilds),
+           "rebuilds": int(ends["default"].status.rebuilds - st.status.rebuilds),
            "overflowed": any(bool(e.status.overflow) for e in ends.values()),
            "pair_block": block}
-    for b, tag in ((0, "one_pass"), (block, "blocks")):
-        m = statistics.median(walls[b]) / steps
+    for tag in SETTINGS:
+        m = statistics.median(walls[tag]) / steps
         out[f"ms_per_step_{tag}"] = m * 1e3
         out[f"M_particle_steps_per_s_{tag}"] = n / m / 1e6
         out[f"ns_per_particle_step_{tag}"] = m / n * 1e9
@@ -70,10 +81,13 @@ def plot(rows, path):
     import matplotlib.pyplot as plt
     n = [r["n_particles"] for r in rows]
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.plot(n, [r["ns_per_particle_step_one_pass"] for r in rows], "o-",
-            label="one pass over all rows")
-    ax.plot(n, [r["ns_per_particle_step_blocks"] for r in rows], "s-",
-            label=f"row blocks of {rows[0]['pair_block']}")
+    ax.plot(n, [r["ns_per_particle_step_default"] for r in rows], "o-",
+            label=f"default: pair passes in one pass, rebuild in blocks of "
+                  f"{rows[0]['pair_block']} rows")
+    ax.plot(n, [r["ns_per_particle_step_one_pass"] for r in rows], "^--",
+            label="both in one pass over all rows")
+    ax.plot(n, [r["ns_per_particle_step_blocks"] for r in rows], "s:",
+            label=f"both in row blocks of {rows[0]['pair_block']}")
     ax.set_xscale("log")
     ax.set_ylim(bottom=0)
     ax.set_xlabel("particles (fluid + boundary)")
@@ -90,7 +104,7 @@ def main():
                     default=[0.0029, 0.00145, 0.00072, 0.00051, 0.00036])
     ap.add_argument("--steps", type=int, default=100)
     ap.add_argument("--reps", type=int, default=5)
-    ap.add_argument("--block", type=int, default=default_pair_block() or 1024)
+    ap.add_argument("--block", type=int, default=CPU_REBUILD_BLOCK)
     ap.add_argument("--out", default=os.path.join(HERE, "results", "sph_scaling.csv"))
     args = ap.parse_args()
     rows = []
@@ -98,11 +112,9 @@ def main():
         r = row(dx, args.steps, args.reps, args.block)
         rows.append(r)
         print(f"dx={dx * 1e3:.2f} mm N={r['n_particles']:7d} K={r['neighbour_capacity']} "
-              f"one pass {r['M_particle_steps_per_s_one_pass']:.2f} M p-steps/s "
-              f"({r['ns_per_particle_step_one_pass']:.0f} ns), blocks "
-              f"{r['M_particle_steps_per_s_blocks']:.2f} M "
-              f"({r['ns_per_particle_step_blocks']:.0f} ns), rebuilds {r['rebuilds']}/"
-              f"{args.steps}", flush=True)
+              + ", ".join(f"{tag} {r[f'M_particle_steps_per_s_{tag}']:.2f} M p-steps/s "
+                          f"({r[f'ns_per_particle_step_{tag}']:.0f} ns)" for tag in SETTINGS)
+              + f", rebuilds {r['rebuilds']}/{args.steps}", flush=True)
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
     with open(args.out, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))

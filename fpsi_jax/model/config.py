@@ -46,7 +46,7 @@ class NeighborConfig:
                   (``neighbors.grow``)
     origin, box   the domain rectangle: positions are shifted by ``origin`` into [0, box)
     row_block     rows per block of the rebuild's candidate pass (0: all rows at once;
-                  ``Physics.pair_block``)
+                  the ``rebuild_block`` option of ``Physics.for_scene``)
     n_columns     only particles below this index are listed as neighbours (0: all). The SPH
                   family puts the grains last and no SPH sum reads a grain column (the grains'
                   own rows carry their coupling), so a scene with grains lists none: in a
@@ -132,23 +132,27 @@ RANGES = {"h_margin": (1.0, 2.0, False, False, False),
           "eps_floor": (0.0, 1.0, False, True, False),
           "dem_substeps": (1, 10000, False, False, True),
           "pair_block": (0, 10**8, False, False, True),
+          "rebuild_block": (0, 10**8, False, False, True),
           "shifting": (0.0, 0.5, False, False, False)}
 
 
-#: rows per block of the SPH pair passes and list rebuild on a CPU (Physics.pair_block)
-CPU_PAIR_BLOCK = 1024
+#: rows per block of the SPH list rebuild's candidate pass on a CPU (the ``rebuild_block``
+#: option): its (rows, 9C) candidate arrays are written out between its loops, and a block's
+#: stay in cache (90k / 344k particles: 217 / 234 against 234 / 242 ns a particle-step;
+#: docs/performance.md, *Pair passes in row blocks*)
+CPU_REBUILD_BLOCK = 1024
 
 #: fluid particles from which a chunk of steps runs on the fluid stored in cell order
 #: (Physics.sort_fluid): below it the particle arrays stay in the CPU's cache whatever
 #: their order (docs/performance.md, *Particle order*)
-SORT_MIN_FLUID = 16 * CPU_PAIR_BLOCK
+SORT_MIN_FLUID = 16 * 1024
 
 
-def default_pair_block() -> int:
-    """:data:`CPU_PAIR_BLOCK` when JAX computes on a CPU, else 0 (one pass over all rows:
-    an accelerator wants the widest arrays; cache blocking is a CPU matter)."""
+def default_rebuild_block() -> int:
+    """:data:`CPU_REBUILD_BLOCK` when JAX computes on a CPU, else 0 (one pass over all
+    rows: an accelerator wants the widest arrays; cache blocking is a CPU matter)."""
     import jax
-    return CPU_PAIR_BLOCK if jax.default_backend() == "cpu" else 0
+    return CPU_REBUILD_BLOCK if jax.default_backend() == "cpu" else 0
 
 
 def check_options(opts: dict) -> dict:
@@ -257,11 +261,14 @@ class Physics:
                            kernel inside a wall is put back on the fluid's side
 
     How the SPH pair sums are cut (no effect on the result beyond float round-off):
-      pair_block           rows per block of the density and momentum pair passes and of the
-                           list rebuild (pairs.over_row_blocks): a block's (rows, K) pair
-                           arrays stay in the CPU's cache. Default :data:`CPU_PAIR_BLOCK`
-                           on a CPU, 0 (all rows in one pass) on an accelerator; scenes
-                           with fewer than pairs.MIN_BLOCKS blocks of rows use one pass
+      pair_block           rows per block of the density and momentum pair passes
+                           (pairs.over_row_blocks). Default 0: all rows in one pass, which
+                           is the fastest at every size measured (their pair terms stay
+                           inside one fused loop per pass; docs/performance.md)
+      rebuild_block        rows per block of the SPH list rebuild's candidate pass, whose
+                           (rows, 9C) candidate arrays are written out between its loops.
+                           Default :data:`CPU_REBUILD_BLOCK` on a CPU, 0 on an accelerator;
+                           either takes one pass below pairs.MIN_BLOCKS blocks of rows
       sort_fluid           each chunk of steps runs on the fluid re-stored in cell order
                            (solver.order; the caller sees the scene's order). Default: on
                            from :data:`SORT_MIN_FLUID` fluid particles
@@ -327,7 +334,8 @@ class Physics:
                "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
                "rho_tolerance", "x64", "skin", "capacity_multiplier", "bond_section",
                "dem_skin", "fsi", "dem_substeps", "fpi", "voidage", "lubrication",
-               "fpi_pressure", "eps_floor", "drag", "pair_block", "density_diffusion",
+               "fpi_pressure", "eps_floor", "drag", "pair_block", "rebuild_block",
+               "density_diffusion",
                "wall_images", "shifting", "sort_fluid", "transport_continuity",
                "dem_list_substeps")
 
@@ -361,8 +369,7 @@ class Physics:
         skin_factor = opts.pop("skin", 0.25 if scene.fsi_coupled else 0.4)
         cap = opts.pop("capacity_multiplier", 1.25)
         dem_skin = float(opts.pop("dem_skin", 0.5))
-        if "pair_block" not in opts:
-            opts["pair_block"] = default_pair_block()
+        rebuild_block = int(opts.pop("rebuild_block", default_rebuild_block()))
         if "sort_fluid" not in opts:
             opts["sort_fluid"] = scene.fluid is not None and scene.fluid.n >= SORT_MIN_FLUID
         h_margin = float(opts.get("h_margin", 1.05))
@@ -404,7 +411,7 @@ class Physics:
             nb = NeighborConfig(r_cut=KERNEL_SUPPORT * h_max, skin=skin_factor * h_max / h_margin,
                                 origin=lo, box=box, capacity_multiplier=float(cap),
                                 cell_multiplier=GRAIN_CELL_MULTIPLIER if n_grain else 0.0,
-                                row_block=int(opts["pair_block"]), n_columns=n_columns,
+                                row_block=rebuild_block, n_columns=n_columns,
                                 fluid_only_rows=(n_f, n_f + n_walls, n_f) if n_walls else ())
         if scene.solid is not None:
             r_max = float(np.max(scene.solid.radius))

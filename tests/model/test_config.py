@@ -28,6 +28,7 @@ def test_physics_is_hashable_and_lists_mechanisms(tiny_tank):
     ({"bogus": 1}, "bogus"),
     ({"pair_block": -1}, "pair_block"),
     ({"pair_block": 2.5}, "pair_block"),
+    ({"rebuild_block": -1}, "rebuild_block"),
 ])
 def test_bad_physics_options_are_refused(tiny_tank, opts, word):
     with pytest.raises((ParameterError, ValueError), match=word):
@@ -44,14 +45,15 @@ def test_neighbour_skin_follows_the_step():
     assert skin(sc) == pytest.approx(0.25) and skin(bare) == pytest.approx(0.4)
 
 
-def test_pair_block_defaults_to_the_cpu_block_and_reaches_the_list(tiny_tank):
-    """On a CPU the pair passes and the rebuild share Physics.pair_block (row blocks of
-    CPU_PAIR_BLOCK); an explicit 0 means one pass over all rows."""
-    from fpsi_jax.model.config import CPU_PAIR_BLOCK, default_pair_block
+def test_pair_passes_take_one_pass_and_the_rebuild_its_cpu_blocks(tiny_tank):
+    """The pair passes run over all rows at once unless Physics.pair_block says otherwise;
+    on a CPU the list rebuild runs in row blocks of CPU_REBUILD_BLOCK (``rebuild_block``,
+    0: one pass), on an accelerator in one pass."""
+    from fpsi_jax.model.config import CPU_REBUILD_BLOCK, default_rebuild_block
     import jax
     ph = Physics.for_scene(tiny_tank)
-    want = CPU_PAIR_BLOCK if jax.default_backend() == "cpu" else 0
-    assert default_pair_block() == want
-    assert ph.pair_block == want and ph.neighbors.row_block == want
-    none = Physics.for_scene(tiny_tank, pair_block=0)
-    assert none.pair_block == 0 and none.neighbors.row_block == 0
+    want = CPU_REBUILD_BLOCK if jax.default_backend() == "cpu" else 0
+    assert default_rebuild_block() == want
+    assert ph.pair_block == 0 and ph.neighbors.row_block == want
+    set_ = Physics.for_scene(tiny_tank, pair_block=256, rebuild_block=0)
+    assert set_.pair_block == 256 and set_.neighbors.row_block == 0
