@@ -16,6 +16,7 @@ without an open side trace none of this.
 """
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
 from ..model.config import Parking, Physics
@@ -64,13 +65,17 @@ def park_fluid(phys: Physics, fluid, t):
     leave takes slot k − 1 (slots 0 … n − 1) and stays there (its velocity and
     acceleration zeroed every step, so the drift never moves it)."""
     t_out, out = leave(phys, fluid.x, fluid.t_out, t)
-    new = out & (fluid.t_out < 0)
-    slot = jnp.sum(fluid.t_out >= 0) + jnp.cumsum(new) - 1
-    spot = spots(phys.parking, slot, fluid.x.dtype)
-    o2 = out[:, None]
-    return fluid.replace(x=jnp.where(new[:, None], spot, fluid.x),
-                         v=jnp.where(o2, 0.0, fluid.v), acc=jnp.where(o2, 0.0, fluid.acc),
-                         xsph=jnp.where(o2, 0.0, fluid.xsph), t_out=t_out)
+
+    def park(fluid):
+        new = out & (fluid.t_out < 0)
+        slot = jnp.sum(fluid.t_out >= 0) + jnp.cumsum(new) - 1
+        spot = spots(phys.parking, slot, fluid.x.dtype)
+        o2 = out[:, None]
+        return fluid.replace(x=jnp.where(new[:, None], spot, fluid.x),
+                             v=jnp.where(o2, 0.0, fluid.v), acc=jnp.where(o2, 0.0, fluid.acc),
+                             xsph=jnp.where(o2, 0.0, fluid.xsph), t_out=t_out)
+    # while no particle is out (most steps of most scenes) nothing is moved or zeroed
+    return jax.lax.cond(jnp.any(out), park, lambda f: f, fluid)
 
 
 def park_discs(phys: Physics, solid, bonds, t):
