@@ -152,10 +152,13 @@ def _pairs(kern, n_fluid, own, nbr, idx, row0, rows=None) -> Pairs:
 
 
 #: fewer blocks than this are done as one pass: below ~40k rows the arrays of all rows still
-#: fit the cache well enough that the blocks' loop costs more than it saves (dam break, two
-#: cores, blocks of 1 024, interleaved chunks: 230–247 against 252–270 ns a particle-step
-#: at 24k particles (20k fluid rows), 236 against 260 at 37k (32k rows); 291 against 275 at
-#: 53k (47k rows), 444 against 276 at 90k; docs/performance.md)
+#: fit the cache well enough that the blocks' loop costs more than it saves (measured when
+#: the pair passes still wrote (rows, K) arrays out and took blocks with the rebuild: dam
+#: break, two cores, blocks of 1 024, interleaved chunks: 230–247 against 252–270 ns a
+#: particle-step at 24k particles (20k fluid rows), 236 against 260 at 37k (32k rows); 291
+#: against 275 at 53k (47k rows), 444 against 276 at 90k; docs/performance.md). The
+#: rebuild's candidate pass uses it on a CPU; the pair passes only if Physics.pair_block
+#: is set.
 MIN_BLOCKS = 40
 
 
