@@ -7,6 +7,9 @@ here earlier for JAX-SPH, which no registry installs.
     nice -n 10 .venv/bin/python experiments/peers.py --sizes 5000 20000 80000 --steps 200
     nice -n 10 .venv/bin/python experiments/peers.py --ours-only    # re-measure us, keep peers
     nice -n 10 .venv/bin/python experiments/peers.py --pysph-only --skip-install
+    nice -n 10 .venv/bin/python experiments/peers.py --sizes 5000 20000 80000 --no-pysph
+        # us and DualSPHysics side by side, PySPH's last figures kept (no network needed
+        # once DualSPHysics is built: FPSI_DSPH_SRC names a source tree)
     nice -n 10 .venv/bin/python experiments/peers.py --sizes --front-dx 0.005 0.0025 \
         --skip-install     # the whole K&O window only: speed at equal accuracy
 
@@ -615,6 +618,9 @@ def main():
                       help="measure PySPH only; keep our figures of peers.json")
     ap.add_argument("--no-dsph", action="store_true",
                     help="leave DualSPHysics out (its last figures in peers.json are kept)")
+    ap.add_argument("--no-pysph", action="store_true",
+                    help="leave PySPH out (its last figures in peers.json are kept, and ours "
+                         "run at the particle counts they matched)")
     ap.add_argument("--front-dx", type=float, nargs="*", default=[],
                     help="also run ours and DualSPHysics over the whole K&O window at these "
                          "dx: front error and wall time (e.g. 0.005 0.0025)")
@@ -650,7 +656,7 @@ def main():
 
     # PySPH: install, then one driver run per size
     pysph_ok = False
-    if not args.ours_only:
+    if not (args.ours_only or args.no_pysph):
         pysph_info = {**pysph_info, "venv": venv, "spec": PYSPH_SPEC, "install_steps":
                       [" ".join(["pip"] + s) for s in INSTALL_STEPS]}
         try:
@@ -694,7 +700,7 @@ def main():
             except (PeerError, subprocess.TimeoutExpired, OSError, KeyError) as e:
                 row["pysph"] = {"error": str(e)}
                 print(f"    PySPH failed at size {target}: {e}", flush=True)
-        elif not args.ours_only:
+        elif not (args.ours_only or args.no_pysph):
             row["pysph"] = {"error": pysph_info.get("error", "PySPH not installed")}
         if not args.pysph_only:
             py_n = (row.get("pysph") or {}).get("n_particles")

@@ -31,8 +31,8 @@ def safe_sqrt(r2):
 def norm2(d):
     """|d|² of (…, 2) vectors, written as d_x² + d_y²: XLA:CPU emits a sum over a last axis
     of 2 as a reduction of its own, which writes the (rows, K) result out to memory, where
-    the components stay inside the loop of the pair terms that read them (the SPH steps
-    24–37 % faster: docs/performance.md, *Where a step's time goes*)."""
+    the components stay inside the loop of the pair terms that read them (the coupled and
+    dam-break steps 6–37 % faster: docs/performance.md, *Where a step's time goes*)."""
     return d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]
 
 

@@ -12,6 +12,14 @@ from .sph_reference import M, NBRS, NF, RHO_OLD, V, X, Hs, Pair, _pairs
 pytestmark = pytest.mark.usefixtures("float64")  # conftest: x64 for this module only
 
 
+def test_norm2_is_the_squared_length_of_each_vector():
+    """d_x² + d_y² over any leading shape: (3, 4) → 25, (−1.5, 2) → 6.25, a padded slot's
+    far-away difference stays finite."""
+    d = jnp.array([[[3.0, 4.0], [-1.5, 2.0]], [[0.0, 0.0], [pairs.FAR, -pairs.FAR]]])
+    np.testing.assert_array_equal(np.asarray(pairs.norm2(d)),
+                                  [[25.0, 6.25], [0.0, 2.0 * pairs.FAR ** 2]])
+
+
 def test_pair_geometry():
     pr = _pairs()
     for i, nb in NBRS.items():
