@@ -702,9 +702,11 @@ def structure_reaction(phys: Physics, fam: SphFamily, table, fluid_rate):
     first, n_s = fam.first_s, phys.n_structure
     idx_s = neighbors.wall_rows(phys.neighbors, fam.idx, first, n_s)
     found = idx_s < phys.n_fluid
+    # an empty slot becomes fluid particle 0 with the padding particle far away as its
+    # neighbour, as a padded slot of a fluid row is: every term of it is exactly zero
     f = jnp.where(found, idx_s, 0).reshape(-1)
-    s = jnp.broadcast_to(first + jnp.arange(n_s, dtype=idx_s.dtype)[:, None],
-                         idx_s.shape).reshape(-1, 1)
+    s = jnp.where(found, first + jnp.arange(n_s, dtype=idx_s.dtype)[:, None],
+                  table.shape[0] - 1).reshape(-1, 1)
     acc = fluid_rate(pairs_at(kernels.get(phys.kernel), phys.n_fluid, table, f, s))
     return fsi.reaction(acc.reshape(idx_s.shape + (2,)), fam.m[f].reshape(idx_s.shape), found)
 
