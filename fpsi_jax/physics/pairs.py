@@ -33,7 +33,12 @@ def norm2(d):
     of 2 as a reduction of its own, which writes the (rows, K) result out to memory, where
     the components stay inside the loop of the pair terms that read them (the coupled and
     dam-break steps 6–37 % faster: docs/performance.md, *Where a step's time goes*)."""
-    return d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]
+    return dot2(d, d)
+
+
+def dot2(a, b):
+    """a·b of (…, 2) vectors in components, a_x b_x + a_y b_y (see :func:`norm2`)."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]
 
 
 def perp(n):

@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 
 from ..model.options import DensityDiffusion
-from .pairs import Pairs, gather, sum_neighbours
+from .pairs import Pairs, dot2, gather, sum_neighbours
 
 
 def _inv_soft_r2(pr: Pairs):
@@ -38,7 +38,7 @@ def continuity(rho_i, pr: Pairs):
 
 def continuity_pairs(pr: Pairs):
     """Pair terms (m_j/ρ_j) v_ij·∇_iW_ij of :func:`continuity` (without the factor ρ_i)."""
-    return pr.vol_j * (pr.vij[..., 0] * pr.dx[..., 0] + pr.vij[..., 1] * pr.dx[..., 1]) * pr.f
+    return pr.vol_j * dot2(pr.vij, pr.dx) * pr.f
 
 
 def delta_pairs(delta, c0, rho_i, pr: Pairs, diffused=None, hydrostatic=None):
@@ -98,7 +98,7 @@ def artificial_viscosity_scalar(alpha, c0, rho_i, rho_j, pr: Pairs):
     seeds; off unless Physics says so), per pair: the scalar s of −m_j Π_ij ∇_iW_ij = s x_ij,
     Π_ij = −α c0 μ_ij/ρ̄_ij for approaching pairs (v_ij·x_ij < 0),
     μ_ij = h_ij v_ij·x_ij/(r² + 0.01h²), so s = −m_j Π_ij F_ij."""
-    vx = pr.vij[..., 0] * pr.dx[..., 0] + pr.vij[..., 1] * pr.dx[..., 1]
+    vx = dot2(pr.vij, pr.dx)
     mu_ij = pr.hij * jnp.minimum(vx, 0.0) * _inv_soft_r2(pr)
     pi_ij = -alpha * c0 * mu_ij * _inv_mean(rho_i, rho_j)
     return -(pr.m_j * pi_ij * pr.f)

@@ -473,10 +473,11 @@ def _all(state: State, fluid_value, name: str):
 
 def pair_pass(phys: Physics, fam: SphFamily, rho_c_all, fn, table=None):
     """fn(Pairs) over the fluid rows of the SPH list, all at once or, if set, in row blocks
-    of ``phys.pair_block`` (pairs.over_row_blocks): the pair geometry of each block (pairs.pairs, with ρ of the
-    volumes m_j/ρ_j from ``rho_c_all``) is built where it is summed, so the density pass and
-    the momentum pass each recompute it rather than reading it back from memory. ``table``:
-    the family's pair_table, where the caller has built it already."""
+    of ``phys.pair_block`` (pairs.over_row_blocks): the pair geometry of each block
+    (pairs.pairs, with ρ of the volumes m_j/ρ_j from ``rho_c_all``) is built where it is
+    summed, so the density pass and the momentum pass each recompute it rather than reading
+    it back from memory. ``table``: the family's pair_table, where the caller has built it
+    already."""
     kern = kernels.get(phys.kernel)
     if table is None:
         table = pair_table(fam.x, fam.v, fam.h, fam.m, rho_c_all)

@@ -18,6 +18,8 @@ def test_norm2_is_the_squared_length_of_each_vector():
     d = jnp.array([[[3.0, 4.0], [-1.5, 2.0]], [[0.0, 0.0], [pairs.FAR, -pairs.FAR]]])
     np.testing.assert_array_equal(np.asarray(pairs.norm2(d)),
                                   [[25.0, 6.25], [0.0, 2.0 * pairs.FAR ** 2]])
+    e = jnp.array([[[1.0, -2.0], [0.5, 4.0]], [[7.0, 3.0], [0.0, 1.0]]])
+    np.testing.assert_array_equal(np.asarray(pairs.dot2(d, e)), [[-5.0, 7.25], [0.0, -pairs.FAR]])
 
 
 def test_pair_geometry():
