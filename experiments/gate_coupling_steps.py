@@ -35,7 +35,8 @@ DEFAULT = ("0.125,0.1", "0.25,0.2", "0.25,0.55", "0.375,0.2", "0.5,0.2", "0.5,0.
            "0.875,0.2", "0.875,0.55")
 
 
-def run(sph_c: float, dem_c: float, t_end: float = 0.36, seed: bool = False) -> dict:
+def run(sph_c: float, dem_c: float, t_end: float = 0.36, seed: bool = False,
+        with_acc: bool = False) -> dict:
     sc = cases.build("elastic_gate", **({} if seed else GATE_COARSE))
     p = sc.params
     dt = timestep.sph_dt(sc, p) * sph_c / timestep.FSI_SPH_CFL
@@ -43,7 +44,7 @@ def run(sph_c: float, dem_c: float, t_end: float = 0.36, seed: bool = False) -> 
     n = max(1, math.ceil(dt / sub - 1e-9))
     t0 = time.perf_counter()
     res = simulate(sc, t_end, dt=dt, dem_substeps=n, unsafe_dt=True, progress=False,
-                   observe=tip_observer(sc))
+                   observe=tip_observer(sc), structure_acceleration=with_acc)
     m = gate_metrics(*tip_displacement(sc, res))
     return {"sph_cfl": sph_c, "dem_factor": dem_c, "dt": dt, "dem_substeps": n,
             "peak_ux_mm": 1e3 * m["peak_ux_m"], "t_peak_s": m["t_peak_s"],
@@ -51,12 +52,14 @@ def run(sph_c: float, dem_c: float, t_end: float = 0.36, seed: bool = False) -> 
             "wall_s": time.perf_counter() - t0}
 
 
-def main(pairs, seed=False):
+def main(pairs, seed=False, with_acc=False):
     path = OUT.replace(".json", "_seed.json") if seed else OUT
+    if with_acc:
+        path = path.replace(".json", "_with_acc.json")
     out = json.load(open(path)) if os.path.exists(path) else {}
     for spec in pairs:
         s, d = map(float, spec.split(","))
-        row = run(s, d, 0.4 if seed else 0.36, seed)
+        row = run(s, d, 0.4 if seed else 0.36, seed, with_acc)
         out[f"{s:g},{d:g}"] = row
         print(json.dumps(row), flush=True)
         with open(path, "w") as fh:
@@ -67,5 +70,6 @@ def main(pairs, seed=False):
 if __name__ == "__main__":
     args = sys.argv[1:]
     seed = "--seed" in args
-    args = [a for a in args if a != "--seed"]
-    main(args or DEFAULT, seed)
+    with_acc = "--structure-acceleration" in args
+    args = [a for a in args if a not in ("--seed", "--structure-acceleration")]
+    main(args or DEFAULT, seed, with_acc)

@@ -122,7 +122,8 @@ class Parking:
 #: Physics options that are switches (true/false)
 SWITCHES = ("xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
             "artificial_viscosity", "wall_repulsion", "x64", "fpi", "lubrication",
-            "wall_images", "sort_fluid", "transport_continuity", "dem_list_substeps")
+            "wall_images", "sort_fluid", "transport_continuity", "dem_list_substeps",
+            "structure_acceleration")
 #: numeric Physics options: (lo, hi, lo_open, hi_open, integer)
 RANGES = {"h_margin": (1.0, 2.0, False, False, False),
           "rho_tolerance": (0.0, 1.0, True, False, False),
@@ -230,6 +231,13 @@ class Physics:
 
     Couplings:
       fsi, n_structure     fluid–structure method (options.FsiMethod) and structure disc count
+      structure_acceleration  the structure discs' own acceleration a_S in their
+                           extrapolated pressure, Adami's (g − a_S) term (default False:
+                           g alone). A bonded disc's acceleration at the end of a step is
+                           its lattice's vibration at the DEM sub-step's scale (the elastic
+                           gate's discs: 530 m/s² RMS while the gate moves at ~10), which
+                           the fluid cannot resolve; with it the gate's peak moved with the
+                           DEM sub-step (docs/design.md, *Time-step coefficients*)
       dem_substeps         DEM sub-steps per SPH step (multi-rate)
       dem_list_substeps    the DEM list's skin test at every sub-step (True) or once per
                            SPH step (False, the default): the list is rebuilt at the start
@@ -311,6 +319,7 @@ class Physics:
     moving_discs: tuple = ()
     fsi: FsiMethod | None = None
     n_structure: int = 0
+    structure_acceleration: bool = False
     dem_substeps: int = 1
     dem_list_substeps: bool = False
     fpi: bool = False
@@ -337,7 +346,7 @@ class Physics:
                "fpi_pressure", "eps_floor", "drag", "pair_block", "rebuild_block",
                "density_diffusion",
                "wall_images", "shifting", "sort_fluid", "transport_continuity",
-               "dem_list_substeps")
+               "dem_list_substeps", "structure_acceleration")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,

@@ -496,6 +496,8 @@ def compose(spec: dict, path: str) -> SceneFile:
         options["dem_substeps"] = ph["dem_substeps"]
     if ph["dem_list_substeps"]:
         options["dem_list_substeps"] = True
+    if ph["structure_acceleration"]:
+        options["structure_acceleration"] = True
     params = Params(gravity=g_vec, sph=sp, dem=dem, bond=bond, fpi=fpi)
 
     # velocity scale and domain

@@ -260,6 +260,9 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
       Key("dem_list_substeps", "bool", "", False, "the DEM contact list's skin test at "
           "every sub-step (false: once per SPH step, with the step's reach; a disc that "
           "outran it makes the run redo its chunk with the test at every sub-step)"),
+      Key("structure_acceleration", "bool", "", False, "the structure discs' own "
+          "acceleration in their extrapolated pressure, Adami's (g − a); false: g alone (a "
+          "bonded disc's acceleration is its lattice's sub-step vibration)"),
       Key("xsph", "bool", "", True, "XSPH velocity smoothing"),
       Key("transport_continuity", "bool", "", True, "continuity with the velocity the "
           "particles move with, v + δv_XSPH (false: with v, as the seeds' K32)"),

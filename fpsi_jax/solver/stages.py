@@ -414,7 +414,8 @@ class SphFamily(NamedTuple):
     idx          (n_sph, K) neighbour list of those rows (grain columns masked out)
     idx_g        (n_grain, K) the grains' rows, or None
     first_s      index of the first structure particle (n_fluid + n_boundary)
-    a_s          (n_structure, 2) the structure discs' acceleration, or None
+    a_s          (n_structure, 2) the structure discs' acceleration, or None (none, or
+                 Physics.structure_acceleration off: their pressure then sees g alone)
     x_p, v_p, r_p, vol_p   the grains' position, velocity, radius and area V_p = πR², or None
     """
     x: jax.Array
@@ -450,7 +451,8 @@ def sph_family(phys: Physics, state: State) -> SphFamily:
     xs_ = vs_ = a_s = None
     if fs is not None:
         s = state.solid
-        xs_, vs_, a_s = s.x[fs.idx], s.v[fs.idx], s.acc[fs.idx]
+        xs_, vs_ = s.x[fs.idx], s.v[fs.idx]
+        a_s = s.acc[fs.idx] if phys.structure_acceleration else None
     idx, idx_g = state.nbrs.idx, None
     x_p = v_p = r_p = vol_p = None
     if fp is not None:

@@ -144,15 +144,18 @@ def test_pressure_approximation_matches_K41():
 
 def test_extrapolated_adds_the_hydrostatic_and_acceleration_terms():
     """Adami et al. 2012: P_S = (Σ P_F W + (g − a_S)·Σ ρ_F x_SF W)/Σ W; one fluid particle
-    r above the structure: P_S = P_F + ρ_F (|g| + a_y) r."""
+    r above the structure: P_S = P_F + ρ_F (|g| + a_y) r with structure_acceleration on,
+    P_F + ρ_F |g| r (the disc's acceleration left out) by default."""
     rho_f, r = 1003.0, 0.007
     xf, xs = np.array([[0.0, r]]), np.array([[0.0, 0.0]])
-    for a_y in (0.0, 4.0):
-        (_, _, _, _, _, fs), _, _ = _evaluate("extrapolated", xf, np.zeros((1, 2)),
-                                              np.array([rho_f]), xs, np.zeros((1, 2)),
-                                              acc_s=jnp.array([[0.0, a_y]]))
-        np.testing.assert_allclose(float(fs.p[0]), _p(rho_f) + rho_f * (9.81 + a_y) * r,
-                                   rtol=1e-12)
+    for with_acc in (True, False):
+        for a_y in (0.0, 4.0):
+            (_, _, _, _, _, fs), _, _ = _evaluate(
+                "extrapolated", xf, np.zeros((1, 2)), np.array([rho_f]), xs,
+                np.zeros((1, 2)), acc_s=jnp.array([[0.0, a_y]]),
+                flags={"structure_acceleration": with_acc})
+            want = _p(rho_f) + rho_f * (9.81 + (a_y if with_acc else 0.0)) * r
+            np.testing.assert_allclose(float(fs.p[0]), want, rtol=1e-12)
 
 
 def test_structure_velocity_enters_continuity_and_viscosity():

@@ -33,27 +33,26 @@ def test_stable_dt_is_the_minimum_of_the_bounds(tiny_tank):
     assert timestep.stable_dt(tiny_tank) == pytest.approx(min(acoustic, viscous, force))
 
 
-def test_fluid_coupled_structure_keeps_physics_md_step_coefficients():
+def test_fluid_coupled_structure_takes_its_own_sph_coefficient():
     """Fluid-only and DEM-only scenes take SPH_CFL and DEM_DT_FACTOR; a scene with option
-    fsi keeps physics.md's 0.25 h/(c0+|v|) and 0.2 √(m/k) (accuracy of the coupling), and
-    the same scene without the coupling takes the larger step."""
+    fsi takes FSI_SPH_CFL = 0.5 h/(c0+|v|) (accuracy of the force-holding coupling) and the
+    DEM's own 0.55 √(m/k), and the same scene without the coupling the larger SPH step."""
     sc = coarse_plate()
     assert sc.options.get("fsi") is not None
     bare = dataclasses.replace(sc, options={k: v for k, v in sc.options.items() if k != "fsi"})
     h = float(sc.fluid.h.min())
     acoustic = lambda cfl: cfl * h / (float(sc.params.sph.c0) + sc.v_max)
-    assert timestep.FSI_SPH_CFL == 0.25 and timestep.FSI_DEM_DT_FACTOR == 0.2
-    assert timestep.sph_dt(sc, sc.params) == pytest.approx(acoustic(0.25))
+    assert timestep.FSI_SPH_CFL == 0.5 and timestep.FSI_DEM_DT_FACTOR == 0.55
+    assert timestep.sph_dt(sc, sc.params) == pytest.approx(acoustic(0.5))
     assert timestep.sph_dt(bare, bare.params) == pytest.approx(acoustic(timestep.SPH_CFL))
-    ratio = timestep.dem_dt(sc, sc.params) / timestep.dem_dt(bare, bare.params)
-    assert ratio == pytest.approx(0.2 / timestep.DEM_DT_FACTOR)
+    assert timestep.dem_dt(sc, sc.params) == pytest.approx(timestep.dem_dt(bare, bare.params))
 
 
 def test_kinematic_structure_takes_the_fluid_only_step_coefficients():
     """A structure whose discs are all kinematic never reads the fluid force held over the
     sub-steps, so option fsi alone does not shorten the step: the plate with every disc
-    held takes SPH_CFL, DEM_DT_FACTOR and the 0.4 h skin; one free disc brings back 0.25,
-    0.2 and 0.25 h."""
+    held takes SPH_CFL and the 0.4 h skin; one free disc brings back FSI_SPH_CFL and
+    0.25 h."""
     sc = coarse_plate()
     held = dataclasses.replace(sc, solid=dataclasses.replace(
         sc.solid, fixed=np.ones(sc.solid.n, bool)))
@@ -69,7 +68,7 @@ def test_kinematic_structure_takes_the_fluid_only_step_coefficients():
                                    else np.ones(sc.solid.n, bool)))[0][0]] = False
     again = dataclasses.replace(sc, solid=dataclasses.replace(sc.solid, fixed=one_free))
     assert again.fsi_coupled
-    assert timestep.sph_dt(again, again.params) == pytest.approx(acoustic(0.25))
+    assert timestep.sph_dt(again, again.params) == pytest.approx(acoustic(timestep.FSI_SPH_CFL))
 
 
 def test_wall_range_from_the_scene_and_its_time_step_bound():
