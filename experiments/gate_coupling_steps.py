@@ -26,6 +26,7 @@ import numpy as np
 
 from fpsi_jax import cases
 from fpsi_jax.cases.elastic_gate import GATE_COARSE, gate_metrics, tip_displacement, tip_observer
+from fpsi_jax.model.errors import SimulationError
 from fpsi_jax.run.driver import simulate
 from fpsi_jax.solver import timestep
 
@@ -59,7 +60,10 @@ def main(pairs, seed=False, with_acc=False):
     out = json.load(open(path)) if os.path.exists(path) else {}
     for spec in pairs:
         s, d = map(float, spec.split(","))
-        row = run(s, d, 0.4 if seed else 0.36, seed, with_acc)
+        try:
+            row = run(s, d, 0.4 if seed else 0.36, seed, with_acc)
+        except SimulationError as err:       # a step past the stable one: record where
+            row = {"sph_cfl": s, "dem_factor": d, "unstable": str(err)}
         out[f"{s:g},{d:g}"] = row
         print(json.dumps(row), flush=True)
         with open(path, "w") as fh:
