@@ -35,15 +35,15 @@ def test_stable_dt_is_the_minimum_of_the_bounds(tiny_tank):
 
 def test_fluid_coupled_structure_takes_its_own_sph_coefficient():
     """Fluid-only and DEM-only scenes take SPH_CFL and DEM_DT_FACTOR; a scene with option
-    fsi takes FSI_SPH_CFL = 0.5 h/(c0+|v|) (accuracy of the force-holding coupling) and the
+    fsi takes FSI_SPH_CFL = 0.375 h/(c0+|v|) (accuracy of the force-holding coupling) and the
     DEM's own 0.55 √(m/k), and the same scene without the coupling the larger SPH step."""
     sc = coarse_plate()
     assert sc.options.get("fsi") is not None
     bare = dataclasses.replace(sc, options={k: v for k, v in sc.options.items() if k != "fsi"})
     h = float(sc.fluid.h.min())
     acoustic = lambda cfl: cfl * h / (float(sc.params.sph.c0) + sc.v_max)
-    assert timestep.FSI_SPH_CFL == 0.5 and timestep.FSI_DEM_DT_FACTOR == 0.55
-    assert timestep.sph_dt(sc, sc.params) == pytest.approx(acoustic(0.5))
+    assert timestep.FSI_SPH_CFL == 0.375 and timestep.FSI_DEM_DT_FACTOR == 0.55
+    assert timestep.sph_dt(sc, sc.params) == pytest.approx(acoustic(0.375))
     assert timestep.sph_dt(bare, bare.params) == pytest.approx(acoustic(timestep.SPH_CFL))
     assert timestep.dem_dt(sc, sc.params) == pytest.approx(timestep.dem_dt(bare, bare.params))
 
