@@ -237,7 +237,7 @@ class Physics:
                            its lattice's vibration at the DEM sub-step's scale (the elastic
                            gate's discs: 530 m/s² RMS while the gate moves at ~10), which
                            the fluid cannot resolve; with it the gate's peak moved with the
-                           DEM sub-step (docs/design.md, *Time-step coefficients*)
+                           steps (docs/design.md, *Time-step coefficients*)
       dem_substeps         DEM sub-steps per SPH step (multi-rate)
       dem_list_substeps    the DEM list's skin test at every sub-step (True) or once per
                            SPH step (False, the default): the list is rebuilt at the start

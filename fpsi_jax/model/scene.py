@@ -181,8 +181,8 @@ class Scene:
     def fsi_coupled(self) -> bool:
         """Structure discs that the fluid moves (option fsi and at least one structure disc
         not kinematic): such a scene takes the SPH coefficient solver.timestep.FSI_SPH_CFL
-        and the 0.25 h skin. The fluid force held over the DEM sub-steps is sized for
-        accuracy, about half the largest stable coupled step (docs/design.md, Time-step
+        and the 0.25 h skin: the fluid force held over the DEM sub-steps loses accuracy on
+        a deformable structure before the step is unstable (docs/design.md, Time-step
         coefficients); a structure whose discs are all kinematic
         (a gate lifted at a set speed) never reads that force, so its scene takes the
         fluid-only and grain coefficients."""
