@@ -32,8 +32,8 @@ from fpsi_jax.solver import timestep
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results", "gate_coupling_steps.json")
-DEFAULT = ("0.125,0.1", "0.25,0.2", "0.25,0.55", "0.375,0.2", "0.5,0.2", "0.5,0.55",
-           "0.875,0.2", "0.875,0.55")
+DEFAULT = ("0.125,0.1", "0.25,0.2", "0.25,0.55", "0.375,0.2", "0.375,0.55", "0.5,0.2",
+           "0.5,0.55", "0.875,0.2", "0.875,0.55")
 
 
 def run(sph_c: float, dem_c: float, t_end: float = 0.36, seed: bool = False,

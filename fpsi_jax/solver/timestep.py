@@ -38,7 +38,7 @@ def _grains(scene: Scene, phys: Physics):
 SPH_CFL = 0.875
 FSI_SPH_CFL = 0.375
 DEM_DT_FACTOR = 0.55
-FSI_DEM_DT_FACTOR = 0.55
+FSI_DEM_DT_FACTOR = DEM_DT_FACTOR      # the DEM bound needs no coupled margin of its own
 
 
 def sph_dt(scene: Scene, params: Params, a_max: float | None = None,
