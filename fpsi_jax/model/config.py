@@ -242,7 +242,9 @@ class Physics:
       dem_list_substeps    the DEM list's skin test at every sub-step (True) or once per
                            SPH step (False, the default): the list is rebuilt at the start
                            of a step when a disc's displacement since the build plus twice
-                           the fastest disc's travel in a step passes half the skin; the
+                           the largest travel a disc's velocity and acceleration predict
+                           for the step passes half the skin, and tested at every sub-step
+                           of a step whose predicted travel alone does; otherwise the
                            sub-steps only track each disc's displacement, and a disc that
                            passed half the skin after all flags the chunk to be redone with
                            this switch on (Status.dem_stale; run.driver.grow). The test,

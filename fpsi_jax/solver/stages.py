@@ -268,17 +268,22 @@ def _dem_list_update(phys: Physics, state: State, rebuild_now=None) -> State:
                           dem_need=jnp.maximum(st.dem_need, need)))
 
 
-def _list_due(phys: Physics, params: Params, state: State):
-    """Whether the DEM list should be rebuilt at the start of an SPH step, so that it holds
-    through the step's sub-steps: a disc's displacement since the build plus twice the
-    fastest disc's travel over the step, Δt max|v|, passes half the skin (the factor 2
-    leaves room for discs that speed up within the step; one that passes half the skin
-    after all is caught by :func:`discs`)."""
+def _list_reach(phys: Physics, params: Params, state: State):
+    """(the largest displacement of a disc since the DEM list's build, the step's reach),
+    the reach being twice the largest travel a disc's present motion predicts over the
+    step, max_i (Δt|v_i| + ½Δt²|a_i|). The factor 2 leaves room for discs whose
+    acceleration changes within the step; the acceleration term covers a structure at the
+    turn of its swing, nearly at rest but accelerating, where Δt max|v| alone predicts no
+    travel. :func:`discs` rebuilds the list at the step's start when the two together pass
+    half the skin, and tests it at every sub-step when the reach alone does (a fresh list
+    may not hold through the step)."""
     cfg, s = phys.dem_neighbors, state.solid
     d = neighbors.shift(cfg, s.x) - state.solid_nbrs.reference_position
     moved = jnp.sqrt(jnp.max(jnp.sum(d * d, axis=-1)))
-    reach = 2.0 * params.dt * jnp.sqrt(jnp.max(jnp.sum(s.v * s.v, axis=-1)))
-    return moved + reach > 0.5 * cfg.skin
+    dt = params.dt
+    travel = (dt * jnp.sqrt(jnp.sum(s.v * s.v, axis=-1))
+              + 0.5 * dt * dt * jnp.sqrt(jnp.sum(s.acc * s.acc, axis=-1)))
+    return moved, 2.0 * jnp.max(travel)
 
 
 def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, wet,
@@ -307,13 +312,16 @@ def discs(phys: Physics, params: Params, state: State) -> State:
     fluid's force on the discs held at its value of the last SPH evaluation. ``state.t`` is
     the time at the end of the step.
 
-    The DEM list is tested once for the step (:func:`_list_due`: rebuilt now if a disc
+    The DEM list is tested once for the step (:func:`_list_reach`: rebuilt now if a disc
     could pass half the skin before the step ends), not at every sub-step: the test, its
     conditionals and the history remap were a third of a sub-step of a few hundred discs.
     The sub-steps track each disc's largest squared displacement from the list's build
     positions; one past half the skin flags ``Status.dem_stale`` (and ``overflow``), and
     the host redoes the chunk with ``Physics.dem_list_substeps``, the test at every
-    sub-step."""
+    sub-step. A step whose predicted reach alone passes half the skin (a disc so fast
+    that even a fresh list may not hold through the step: the gate's free end striking,
+    1.5 m/s and 2·10⁵ m/s²) takes the test at every sub-step in the same program, so the
+    chunk is neither redone nor the step compiled again."""
     n = phys.dem_substeps
     dts = params.dt / n
     t0 = (state.step - 1) * params.dt      # the time at the start of the step
@@ -333,27 +341,37 @@ def discs(phys: Physics, params: Params, state: State) -> State:
         with jax.named_scope("step.dem_substeps"):
             part = jax.lax.fori_loop(0, n, one, part)
     else:
-        # the list's skin test once for the step; the sub-steps track how far each disc
-        # has moved from the list's build positions
-        part = _dem_list_update(phys, part, _list_due(phys, params, part))
         cfg = phys.dem_neighbors
-        ref = part.solid_nbrs.reference_position + jnp.asarray(cfg.origin,
-                                                                part.solid.x.dtype)
+        half = 0.5 * cfg.skin
+        moved, reach = _list_reach(phys, params, part)
 
-        def tracked(k, carry):
-            p, far = carry
-            p = _disc_substep(phys, params, p, t0 + (k + 1) * dts, dts, f_fluid, wet,
-                              check_list=False)
-            d = p.solid.x - ref
-            return p, jnp.maximum(far, jnp.sum(d * d, axis=-1))
+        def tested_once(part):
+            # the list's skin test once for the step; the sub-steps track how far each
+            # disc has moved from the list's build positions
+            part = _dem_list_update(phys, part, moved + reach > half)
+            ref = part.solid_nbrs.reference_position + jnp.asarray(cfg.origin,
+                                                                    part.solid.x.dtype)
 
-        with jax.named_scope("step.dem_substeps"):
-            part, far = jax.lax.fori_loop(0, n, tracked,
-                                          (part, jnp.zeros(ref.shape[:1], ref.dtype)))
-        stale = jnp.any(far > (0.5 * cfg.skin) ** 2)
-        st = part.status
-        part = part.replace(status=st.replace(overflow=st.overflow | stale,
-                                              dem_stale=st.dem_stale | stale))
+            def tracked(k, carry):
+                p, far = carry
+                p = _disc_substep(phys, params, p, t0 + (k + 1) * dts, dts, f_fluid, wet,
+                                  check_list=False)
+                d = p.solid.x - ref
+                return p, jnp.maximum(far, jnp.sum(d * d, axis=-1))
+
+            with jax.named_scope("step.dem_substeps"):
+                part, far = jax.lax.fori_loop(0, n, tracked,
+                                              (part, jnp.zeros(ref.shape[:1], ref.dtype)))
+            stale = jnp.any(far > half ** 2)
+            st = part.status
+            return part.replace(status=st.replace(overflow=st.overflow | stale,
+                                                  dem_stale=st.dem_stale | stale))
+
+        def tested_each_substep(part):
+            with jax.named_scope("step.dem_substeps_tested"):
+                return jax.lax.fori_loop(0, n, one, part)
+
+        part = jax.lax.cond(reach > half, tested_each_substep, tested_once, part)
     status = part.status
     if state.walls is not None:
         status = health.check_wall_crossings(part.solid, state.solid.x, state.walls,

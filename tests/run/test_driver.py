@@ -79,15 +79,18 @@ def squeezed_block():
 
 
 def test_a_stale_dem_list_is_redone_with_the_test_at_every_substep():
-    """A grain pushed from rest past two half-skins of its DEM list within one step: the
-    once-a-step test misses it, the step flags the list stale, and the driver redoes the
-    chunk with Physics.dem_list_substeps; the run then equals one made that way from the
-    start."""
+    """A grain at rest pushed past several half-skins of its DEM list within one step by
+    a load that ramps up over that step (so the start's acceleration does not predict
+    it): the once-a-step test misses it, the step flags the list stale, and the driver
+    redoes the chunk with Physics.dem_list_substeps; the run then equals one made that way
+    from the start."""
     from ..small_scenes import grain_scene
     sc = grain_scene(x64=False)
     phys, params = setup(sc)
     half = 0.5 * phys.dem_neighbors.skin
-    sc.solid.f_ext = np.array([[16.0 * half / params.dt ** 2 * float(sc.solid.mass[0]), 0.0]])
+    # ramped over Δt: x(Δt) = aΔt²/6 = 4 half-skins
+    sc.solid.f_ext = np.array([[24.0 * half / params.dt ** 2 * float(sc.solid.mass[0]), 0.0]])
+    sc.params = sc.params.replace(dem=sc.params.dem.replace(load_ramp=params.dt))
     t_end = 2 * params.dt                     # a hard push: two steps of it, loose density band
     redone = simulate(sc, t_end=t_end, chunk_steps=1, progress=False, rho_tolerance=0.9)
     strict = simulate(sc, t_end=t_end, chunk_steps=1, progress=False, rho_tolerance=0.9,

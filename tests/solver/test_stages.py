@@ -413,7 +413,7 @@ def _grain_run(phys, p, st, n):
 
 @x64
 def test_dem_list_tested_once_a_step_equals_the_test_at_every_substep():
-    """The DEM list's skin test once per SPH step (with the step's reach: stages._list_due)
+    """The DEM list's skin test once per SPH step (with the step's reach: stages._list_reach)
     and at every sub-step (Physics.dem_list_substeps) sum the same pairs: a grain thrown
     through water at a wall, its list rebuilt many times, takes the same path to
     round-off, and nothing is flagged."""
@@ -450,6 +450,31 @@ def test_a_disc_past_half_the_skin_within_a_step_flags_the_chunk():
     assert safe.dem_list_substeps
     _, end = _grain_run(safe, p, st, 1)
     assert not bool(end.status.dem_stale) and not bool(end.status.overflow)
+
+
+@x64
+def test_a_step_whose_reach_passes_half_the_skin_tests_every_substep():
+    """A grain whose present acceleration predicts a travel past half the DEM list's skin
+    within the step (stages._list_reach: twice Δt|v| + ½Δt²|a|) has its list tested at
+    every sub-step in the same program: the list is rebuilt on the way, nothing is flagged
+    for a redo, and the step equals the one with Physics.dem_list_substeps."""
+    sc = grain_scene()
+    phys, p, st = init_x64(sc)
+    half = 0.5 * phys.dem_neighbors.skin
+    m = float(sc.solid.mass[0])
+    a = 16.0 * half / float(p.dt) ** 2             # ½Δt²a = 8 half skins
+    st = st.replace(solid=st.solid.replace(f_ext=st.solid.f_ext.at[0].set(A(a * m, 0.0)),
+                                           acc=st.solid.acc.at[0].set(A(a, 0.0))))
+    moved, reach = stages._list_reach(phys, p, st)
+    assert float(moved) == 0.0 and float(reach) == pytest.approx(16.0 * half, rel=1e-6)
+    x_step, end = _grain_run(phys, p, st, 1)
+    x_sub, end_sub = _grain_run(dataclasses.replace(phys, dem_list_substeps=True), p, st, 1)
+    assert not bool(end.status.dem_stale) and not bool(end.status.overflow)
+    assert x_step[0, 0] - float(st.solid.x[0, 0]) > 2 * half
+    np.testing.assert_allclose(x_step, x_sub, rtol=0, atol=1e-14)
+    np.testing.assert_array_equal(np.asarray(end.solid_nbrs.reference_position),
+                                  np.asarray(end_sub.solid_nbrs.reference_position))
+    assert int(end.status.dem_rebuilds) == int(end_sub.status.dem_rebuilds) > 0
 
 
 # --- the SPH evaluation with a grain (float64) -------------------------------------------
