@@ -13,9 +13,10 @@ def coarse_plate(**kw):
 
 
 def grain_scene(**kw):
-    """One grain (d = 2.5 mm) in a 12 mm box of water (option fpi), float64."""
+    """One grain (d = 2.5 mm) in a 12 mm box of water (option fpi), float64; without the
+    added mass (the engine's default) unless ``added_mass=True``."""
     base = dict(width=0.012, height=0.012, d=0.0025, y0=0.006, x0=0.006, dx=0.0015,
-                h0=0.003, rho_grain=1000.0, x64=True, t_end=0.01)
+                h0=0.003, rho_grain=1000.0, x64=True, t_end=0.01, added_mass=False)
     return cases.build("sedimentation", **{**base, **kw})
 
 

@@ -123,7 +123,7 @@ class Parking:
 SWITCHES = ("xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
             "artificial_viscosity", "wall_repulsion", "x64", "fpi", "lubrication",
             "wall_images", "sort_fluid", "transport_continuity", "dem_list_substeps",
-            "structure_acceleration")
+            "structure_acceleration", "added_mass")
 #: numeric Physics options: (lo, hi, lo_open, hi_open, integer)
 RANGES = {"h_margin": (1.0, 2.0, False, False, False),
           "rho_tolerance": (0.0, 1.0, True, False, False),
@@ -266,6 +266,9 @@ class Physics:
                            the mixture's continuity: energy-conserving, for packed beds);
                            see fpi.py
       lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)
+      added_mass           the added-mass force on wet grains, C_a ρ_f V_p (Du/Dt − dv_p/dt)
+                           with C_a = Params.fpi.added_mass, and its reaction on the fluid
+                           (off by default: the seeds have none; fpi.py)
       wall_images          the grains' mirror images in the one-sided DEM walls count in the
                            fluid's solid fraction (fpi.wall_images): the part of a grain's
                            kernel inside a wall is put back on the fluid's side
@@ -331,6 +334,7 @@ class Physics:
     drag: Drag = Drag.SPHERE
     eps_floor: float = 0.0
     lubrication: bool = True
+    added_mass: bool = False
     wall_images: bool = True
     domain_lo: tuple | None = None
     domain_hi: tuple | None = None
@@ -347,7 +351,7 @@ class Physics:
                "dem_skin", "fsi", "dem_substeps", "fpi", "voidage", "lubrication",
                "fpi_pressure", "eps_floor", "drag", "pair_block", "rebuild_block",
                "density_diffusion",
-               "wall_images", "shifting", "sort_fluid", "transport_continuity",
+               "wall_images", "shifting", "sort_fluid", "transport_continuity", "added_mass",
                "dem_list_substeps", "structure_acceleration")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
@@ -489,6 +493,7 @@ class Physics:
             m += ["fpi.voidage", f"fpi.drag.{self.drag}", f"fpi.buoyancy.{self.fpi_pressure}",
                   "fpi.reaction"]
             m += ["fpi.lubrication"] if self.lubrication else []
+            m += ["fpi.added_mass"] if self.added_mass else []
         return tuple(m)
 
     @property

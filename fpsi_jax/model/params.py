@@ -144,14 +144,19 @@ class FpiParams:
 
     lub_gap_min   lubrication (W24) gap regularisation: s ← max(s, lub_gap_min · d̄)
     lub_cutoff    lubrication acts for gaps s ≤ lub_cutoff · d̄ (zero beyond)
+    added_mass    added-mass coefficient C_a (Physics.added_mass): the fluid a grain
+                  accelerates carries C_a ρ_f V_p with it; 1 is a circular cylinder's
+                  potential-flow value (Lamb 1932, §68), i.e. a disc per unit thickness
     """
 
     lub_gap_min: Any = 0.02
     lub_cutoff: Any = 0.1
+    added_mass: Any = 1.0
 
     def validate(self):
         require("fpi.lub_gap_min", self.lub_gap_min, 0.0, 1.0, lo_open=True)
         require("fpi.lub_cutoff", self.lub_cutoff, 0.0, 1.0)
+        require("fpi.added_mass", self.added_mass, 0.0, 10.0)
 
 
 @pytree_dataclass

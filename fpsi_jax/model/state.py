@@ -119,7 +119,11 @@ class FpiState:
     volume πR² and diameter 2R come from the disc radius), the fluid voidage ε of every fluid particle (W2, what the
     fluid equations W42–W43 use), and at the last SPH evaluation each grain's voidage ε_p
     (W18), Shepard fluid velocity ū_f (W21), wetness Σ_f V_f W_pf (0: dry) and ``force``,
-    the fluid's force, pressure (buoyancy) + drag (W19), which the DEM sub-steps hold."""
+    the fluid's force, pressure (buoyancy) + drag (W19), which the DEM sub-steps hold.
+    With the added mass (Physics.added_mass; else None): ``du_f`` (n_g, 2), the Shepard
+    fluid acceleration Du/Dt at each grain at the last evaluation (its C_a ρ_f V_p Du/Dt is
+    in ``force``), and ``added`` (n_g, 2), the added-mass force C_a ρ_f V_p (Du/Dt − Δv_p/Δt)
+    the grain took over the last step's sub-steps, whose reaction goes to the fluid."""
 
     idx: Any
     eps: Any
@@ -127,6 +131,8 @@ class FpiState:
     u_f: Any
     wet: Any
     force: Any
+    du_f: Any = None
+    added: Any = None
 
 
 BREAK_MODES = {0: "intact", 1: "tension", 2: "shear", 3: "a disc left the domain"}

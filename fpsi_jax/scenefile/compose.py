@@ -484,9 +484,11 @@ def compose(spec: dict, path: str) -> SceneFile:
                 fail(path, "physics", "key 'fpi' = true: the scene has no grains")
             options.update(fpi=True, voidage=ph["voidage"], eps_floor=ph["eps_floor"],
                            drag=ph["drag"], wall_images=ph["wall_images"],
-                           lubrication=ph["lubrication"], fpi_pressure=ph["fpi_pressure"])
+                           lubrication=ph["lubrication"], fpi_pressure=ph["fpi_pressure"],
+                           added_mass=ph["added_mass"])
             fpi_tbl = spec.get("fpi") or _defaults("fpi")
-            fpi = FpiParams(lub_gap_min=fpi_tbl["lub_gap_min"], lub_cutoff=fpi_tbl["lub_cutoff"])
+            fpi = FpiParams(lub_gap_min=fpi_tbl["lub_gap_min"], lub_cutoff=fpi_tbl["lub_cutoff"],
+                            added_mass=fpi_tbl["added_mass"])
             gi = np.flatnonzero(solid.grain)
             fluid = fluid_among_grains(fluid, solid.x[gi], solid.radius[gi], ph["voidage"],
                                        ph["eps_floor"], walls if ph["wall_images"] else None)

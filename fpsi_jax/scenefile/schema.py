@@ -222,11 +222,14 @@ table("bonds", False, "Parallel-bond constants (K17–K22); each key overrides w
       Key("lam", "float", "", 1.0, "bond radius multiplier λ", lo=0.0, hi=1.0, lo_open=True),
       _pos("thickness", "m", 1.0, "out-of-plane thickness of the slab section"))
 
-table("fpi", False, "Fluid–grain coupling constants (W24 lubrication).",
+table("fpi", False, "Fluid–grain coupling constants (W24 lubrication, added mass).",
       Key("lub_gap_min", "float", "", 0.02, "gap regularisation × d̄", lo=0.0, hi=1.0,
           lo_open=True),
       Key("lub_cutoff", "float", "", 0.1, "lubrication acts for gaps ≤ this × d̄", lo=0.0,
-          hi=1.0))
+          hi=1.0),
+      Key("added_mass", "float", "", 1.0, "added-mass coefficient C_a (1: a circular "
+          "cylinder in potential flow); used with [physics] added_mass = true", lo=0.0,
+          hi=10.0))
 
 table("physics", False, "Which mechanisms are compiled (Physics options; docs/physics.md).",
       Key("coupling", "str", "", None, "fluid–structure coupling (default 'extrapolated' when "
@@ -271,6 +274,8 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
           "surface (0: off)", lo=0.0, hi=0.5),
       Key("variable_h", "bool", "", True, "variable smoothing length"),
       Key("lubrication", "bool", "", True, "lubrication between grains in fluid (W24)"),
+      Key("added_mass", "bool", "", False, "the grains' added mass C_a ρ_f V_p (Du/Dt − "
+          "dv/dt), C_a from [fpi] (off: the seeds have none)"),
       Key("fpi_pressure", "str", "", "archimedes",
           "pressure force on grains ('shared': energy-conserving, for packed beds)",
           choices=("archimedes", "gradient", "shared")),

@@ -76,7 +76,9 @@ def allocated_state(scene: Scene, phys: Physics) -> State:
             ng = k.size
             fpi_state = FpiState(
                 idx=jnp.asarray(k, jnp.int32), eps=a(np.ones(fl.n)), eps_p=a(np.ones(ng)), u_f=a(np.zeros((ng, 2))),
-                wet=a(np.zeros(ng)), force=a(np.zeros((ng, 2))))
+                wet=a(np.zeros(ng)), force=a(np.zeros((ng, 2))),
+                du_f=a(np.zeros((ng, 2))) if phys.added_mass else None,
+                added=a(np.zeros((ng, 2))) if phys.added_mass else None)
     if scene.solid is not None:
         so = scene.solid
         x = a(so.x)
@@ -143,6 +145,7 @@ def refresh_rates(phys: Physics, state: State, params: Params) -> State:
                               boundary=ev.boundary, fsi=ev.fsi, fpi=ev.fpi)
     if phys.has_solid:
         ev = stages.disc_forces(phys, params, state, 0.0, stages.fluid_force_on_discs(phys, state),
-                                stages.wet_grains(phys, state))
+                                stages.wet_grains(phys, state),
+                                stages.grain_added_mass(phys, params, state))
         state = state.replace(solid=state.solid.replace(acc=ev.solid.acc, alpha=ev.solid.alpha))
     return state

@@ -108,6 +108,17 @@ def wet_grains(phys: Physics, state: State):
     return mask, state.fpi.idx
 
 
+def grain_added_mass(phys: Physics, params: Params, state: State):
+    """(n_solid,) the added mass C_a ρ_f V_p on each wet grain's row (fpi.added_mass; 0
+    elsewhere), or None when Physics.added_mass is off."""
+    if not (phys.has_fpi and phys.added_mass):
+        return None
+    fp, s = state.fpi, state.solid
+    r = s.radius[fp.idx]
+    m_a = fpi.added_mass(params.fpi.added_mass, params.sph.rho0, jnp.pi * r * r, fp.wet)
+    return jnp.zeros_like(s.mass).at[fp.idx].set(m_a)
+
+
 def _moving_rows(phys: Physics):
     """The rows the contact and wall sums run over (Physics.moving_discs), or None: all."""
     return jnp.asarray(phys.moving_discs, jnp.int32) if phys.moving_discs else None
@@ -179,12 +190,13 @@ def _wall_forces(dp, own, s, walls, dt):
 
 
 def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
-                wet=None) -> State:
+                wet=None, m_added=None) -> State:
     """Every force on the discs at the state's (x, θ, v, ω): contacts, walls, bonds (with
     fracture at time state.t), gravity, external loads, the fluid's force ``f_fluid`` (held
     over the sub-steps), lubrication between ``wet`` grains (W24; :func:`wet_grains`),
     local and viscous damping. Stores the accelerations, the contact histories and the bond
-    state. ``dt`` is the shear-spring increment (0: none)."""
+    state. ``dt`` is the shear-spring increment (0: none). ``m_added`` (n_solid,): the
+    grains' added mass (:func:`grain_added_mass`), which joins their translational inertia."""
     dp, s, b = params.dem, state.solid, state.bonds
     x, v, omega = s.x, s.v, s.omega
     # the contact and wall sums run over the rows of the discs that move under their forces
@@ -233,7 +245,8 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
         force = force + dem.viscous_damping(dp.damping, s.mass[:, None], v)
         torque = torque + dem.viscous_damping(dp.damping, s.inertia, omega)
     free = ~s.fixed
-    acc = jnp.where(free[:, None], force / s.mass[:, None], 0.0)
+    inertia = s.mass if m_added is None else s.mass + m_added
+    acc = jnp.where(free[:, None], force / inertia[:, None], 0.0)
     alpha = jnp.where(free, torque / s.inertia, 0.0)
     return state.replace(solid=s.replace(acc=acc, alpha=alpha, shear=shear,
                                          wall_shear=wall_shear), bonds=b)
@@ -287,7 +300,7 @@ def _list_reach(phys: Physics, params: Params, state: State):
 
 
 def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, wet,
-                  check_list: bool = True) -> State:
+                  check_list: bool = True, m_added=None) -> State:
     """One DEM kick–drift–kick of length ``dt`` ending at time ``t``; ``check_list``: the
     DEM list's skin test at the new positions (:func:`_dem_list_update`)."""
     s = state.solid
@@ -300,7 +313,7 @@ def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, w
                                                 omega=w_half))
     if check_list:
         state = _dem_list_update(phys, state)
-    state = disc_forces(phys, params, state, dt, f_fluid, wet)
+    state = disc_forces(phys, params, state, dt, f_fluid, wet, m_added)
     s = state.solid
     with jax.named_scope("step.solid_kick"):
         return state.replace(solid=s.replace(v=s.v + 0.5 * dt * s.acc,
@@ -327,13 +340,15 @@ def discs(phys: Physics, params: Params, state: State) -> State:
     t0 = (state.step - 1) * params.dt      # the time at the start of the step
     f_fluid = fluid_force_on_discs(phys, state)
     wet = wet_grains(phys, state)
+    m_added = grain_added_mass(phys, params, state)
     # the loop carries the DEM part of the state only
     part = State(t=state.t, step=state.step, fluid=None, boundary=None, nbrs=None,
                  status=state.status, solid=state.solid, bonds=state.bonds,
                  solid_nbrs=state.solid_nbrs, walls=state.walls)
 
     def one(k, p):
-        return _disc_substep(phys, params, p, t0 + (k + 1) * dts, dts, f_fluid, wet)
+        return _disc_substep(phys, params, p, t0 + (k + 1) * dts, dts, f_fluid, wet,
+                             m_added=m_added)
 
     if n == 1:
         part = one(0, part)
@@ -355,7 +370,7 @@ def discs(phys: Physics, params: Params, state: State) -> State:
             def tracked(k, carry):
                 p, far = carry
                 p = _disc_substep(phys, params, p, t0 + (k + 1) * dts, dts, f_fluid, wet,
-                                  check_list=False)
+                                  check_list=False, m_added=m_added)
                 d = p.solid.x - ref
                 return p, jnp.maximum(far, jnp.sum(d * d, axis=-1))
 
@@ -376,8 +391,15 @@ def discs(phys: Physics, params: Params, state: State) -> State:
     if state.walls is not None:
         status = health.check_wall_crossings(part.solid, state.solid.x, state.walls,
                                              state.step, status)
+    fp = state.fpi
+    if m_added is not None:
+        # what the grains' added mass took over the step goes back to the fluid with the
+        # drag at the step's SPH evaluation (grain_forces)
+        k = fp.idx
+        fp = fp.replace(added=fpi.added_mass_force(
+            m_added[k], fp.du_f, part.solid.v[k] - state.solid.v[k], params.dt))
     return state.replace(solid=part.solid, bonds=part.bonds, solid_nbrs=part.solid_nbrs,
-                         walls=part.walls, status=status)
+                         walls=part.walls, status=status, fpi=fp)
 
 
 def disc_exits(phys: Physics, params: Params, state: State) -> State:
@@ -758,14 +780,32 @@ def grain_forces(phys: Physics, params: Params, state: State, fam: SphFamily,
             # pressure force, not a force on the fluid: only the drag goes back, by the
             # weights of the fluid velocity ū it was computed from, so that it only ever
             # dissipates (a wall share would let it pump energy near a wall)
-            acc = f.acc + fpi.reaction_acceleration(rows, drag, f.mass)
+            acc, back = f.acc, drag
+            reaction = functools.partial(fpi.reaction_acceleration, rows, m_f=f.mass)
         else:
             wall = None if b is None else fpi.wall_share(kern, b.x, b.h, b.mass / b.rho,
                                                          fam.x_p, fam.idx_g, phys.n_fluid)
-            acc = f.acc + fpi.reaction_acceleration(rows, force, f.mass, wall)
+            reaction = functools.partial(fpi.reaction_acceleration, rows, m_f=f.mass,
+                                         wall=wall)
+            acc, back = f.acc, force
+            if phys.added_mass:      # the buoyancy back first: Du/Dt is read after it
+                acc, back = acc + reaction(force - drag), drag
+    held, du_f = force, None
+    if phys.added_mass:
+        # Du/Dt is the fluid's acceleration under its pressure, viscosity and gravity with
+        # the grains' buoyancy handed back, not their drag; the grains hold m_a Du/Dt with
+        # the drag and buoyancy, and the added-mass force they took over this step's
+        # sub-steps (discs) goes back to the fluid with the drag
+        with jax.named_scope("fpi.added_mass"):
+            du_f = fpi.fluid_acceleration(rows, acc)
+            m_a = fpi.added_mass(params.fpi.added_mass, sp.rho0, fam.vol_p, wet)
+            held = force + m_a[:, None] * du_f
+            back = back + fp.added
+    with jax.named_scope("fpi.reaction"):
+        acc = acc + reaction(back)
     return state.replace(fluid=f.replace(acc=acc),
                          fpi=fp.replace(eps=lvl.eps, eps_p=eps_p, u_f=u_f, wet=wet,
-                                        force=force))
+                                        force=held, du_f=du_f))
 
 
 def evaluate_fluid(phys: Physics, params: Params, state: State, dt) -> State:

@@ -312,3 +312,34 @@ def test_voidage_with_wall_images_is_differentiable_in_the_grains_position():
     g = fd_check(loss, theta, rel_step=1e-4, tol=1e-5)
     alone = np.asarray(jax.grad(lambda t: loss(t, None))(theta))
     assert abs(g[1] - alone[1]) > 0.1 * abs(alone[1])      # the image is in the gradient
+
+
+def test_added_mass_is_ca_rho_vp_on_wet_grains_only():
+    """m_a = C_a ρ_f V_p (C_a = 1: a circular cylinder in potential flow), 0 when dry."""
+    vol = jnp.asarray([2.0e-6, 3.0e-6])
+    m_a = fpi.added_mass(1.0, 1000.0, vol, jnp.asarray([0.7, 0.0]))
+    np.testing.assert_allclose(np.asarray(m_a), [2.0e-3, 0.0], rtol=1e-14)
+    assert float(fpi.added_mass(0.5, 1000.0, vol, jnp.ones(2))[1]) == pytest.approx(1.5e-3)
+
+
+def test_added_mass_force_is_ma_times_fluid_minus_grain_acceleration():
+    """F_a = m_a (Du/Dt − Δv_p/Δt): a grain that keeps pace with the fluid takes none."""
+    m_a = jnp.asarray([2.0e-3, 2.0e-3])
+    du = jnp.asarray([[0.0, 0.0], [1.0, -2.0]])
+    dv = jnp.asarray([[0.0, -1.0e-4], [1.0e-4, -2.0e-4]])
+    f = np.asarray(fpi.added_mass_force(m_a, du, dv, 1.0e-4))
+    np.testing.assert_allclose(f[0], [0.0, 2.0e-3], rtol=1e-12)
+    np.testing.assert_allclose(f[1], [0.0, 0.0], atol=1e-15)
+
+
+def test_fluid_acceleration_is_the_shepard_average_and_zero_when_dry():
+    kern = kernels.get("wendland")
+    x_f = jnp.asarray([[0.0, 0.001], [0.001, 0.0], [0.05, 0.05]])
+    acc = jnp.asarray([[1.0, 0.0], [0.0, 3.0], [9.0, 9.0]])
+    idx = jnp.asarray([[0, 1, 3], [3, 3, 3]])        # grain 1 has no fluid neighbour
+    rows = fpi.grain_rows(kern, x_f, jnp.full(3, 0.002), jnp.full(3, 1e-6),
+                          jnp.zeros((2, 2)), idx, 3)
+    du = np.asarray(fpi.fluid_acceleration(rows, acc))
+    w = np.asarray(rows.w[0, :2])
+    np.testing.assert_allclose(du[0], [w[0] / w.sum(), 3.0 * w[1] / w.sum()], rtol=1e-6)
+    np.testing.assert_array_equal(du[1], [0.0, 0.0])

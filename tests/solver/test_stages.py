@@ -494,6 +494,62 @@ def test_still_water_beside_a_grain_is_in_balance():
 
 
 @x64
+def test_a_grain_with_added_mass_accelerates_against_its_inertia_plus_ma():
+    """One DEM stage from rest in still water, no contact: the grain's velocity change is
+    Δt (m_p g + F)/(m_p + m_a), F the held fluid force (with m_a Du/Dt in it), m_a = C_a ρ_f
+    V_p; what it took, m_a (Du/Dt − Δv/Δt), is stored for the fluid's reaction. Against
+    the grain without added mass: (ρ_p − ρ_f)/(ρ_p + ρ_f) over (ρ_p − ρ_f)/ρ_p at rest."""
+    scene = grain_scene(rho_grain=1250.0, added_mass=True)
+    phys, p, st = init_x64(scene)
+    assert "fpi.added_mass" in phys.mechanisms()
+    m_p = float(scene.solid.mass[0])
+    m_a = 1000.0 * np.pi * float(scene.solid.radius[0]) ** 2
+    end = stages.discs(phys, p, st.replace(step=st.step + 1))
+    f = np.asarray(st.fpi.force[0])
+    dv = np.asarray(end.solid.v[0] - st.solid.v[0])
+    dt = float(p.dt)
+    a = (m_p * np.array([0.0, -9.81]) + f) / (m_p + m_a)
+    np.testing.assert_allclose(np.asarray(st.solid.acc[0]), a, rtol=1e-10)   # at the start
+    np.testing.assert_allclose(dv, dt * a, rtol=1e-10)          # and over the stage
+    np.testing.assert_allclose(np.asarray(end.fpi.added[0]),
+                               m_a * (np.asarray(st.fpi.du_f[0]) - dv / dt), rtol=1e-10)
+    # at rest the held force is Archimedes' plus m_a Du/Dt of a still fluid (a few % of g)
+    assert abs(float(st.fpi.du_f[0, 1])) < 0.05 * 9.81
+    ratio = dv[1] / (dt * -9.81 * 0.25 / 1.25)
+    assert ratio == pytest.approx(1.25 / 2.25, rel=0.05)
+
+
+@x64
+def test_added_mass_and_drag_go_back_to_the_fluid_whole():
+    """grain_forces with an added-mass force A stored from the sub-steps: away from walls
+    the fluid's reaction sums to −(drag + buoyancy + A), and the grain holds drag +
+    buoyancy + m_a Du/Dt with Du/Dt the Shepard average of the fluid's acceleration after
+    the buoyancy's reaction."""
+    scene = grain_scene(rho_grain=2500.0, added_mass=True, width=0.03, height=0.03,
+                        x0=0.015, y0=0.015)
+    phys, p, st = init_x64(scene)
+    st = st.replace(solid=st.solid.replace(v=st.solid.v.at[0].set([0.01, -0.02])))
+    a_stored = jnp.asarray([[3.0e-4, -5.0e-4]])
+    st = st.replace(fpi=st.fpi.replace(added=a_stored))
+    fam = stages.sph_family(phys, st)
+    rho_c = stages._all(st, st.fpi.eps * st.fluid.rho, "rho")
+    lvl = stages.new_level(phys, p, st, fam, rho_c, 0.0)
+    mom, _ = stages.fluid_momentum(phys, p, st, fam, rho_c, lvl)
+    out = stages.grain_forces(phys, p, mom, fam, lvl)
+    m = np.asarray(st.fluid.mass)[:, None]
+    reaction = (m * (np.asarray(out.fluid.acc) - np.asarray(mom.fluid.acc))).sum(0)
+    phys0 = dataclasses.replace(phys, added_mass=False)
+    plain = stages.grain_forces(phys0, p, mom, fam, lvl)
+    f0 = np.asarray(plain.fpi.force[0])                  # drag + buoyancy
+    assert abs(f0[0]) > 1e-6                             # the grain moves: a real drag
+    np.testing.assert_allclose(reaction, -(f0 + np.asarray(a_stored[0])), rtol=1e-10,
+                               atol=1e-14)
+    m_a = 1000.0 * np.pi * float(scene.solid.radius[0]) ** 2
+    np.testing.assert_allclose(np.asarray(out.fpi.force[0]),
+                               f0 + m_a * np.asarray(out.fpi.du_f[0]), rtol=1e-12)
+
+
+@x64
 def test_shared_pressure_splits_each_cell_and_creates_no_momentum():
     """fpi_pressure 'shared': the fluid keeps ε_f of its cell's pressure force and the grains
     get the rest. One SPH evaluation of a packed bed at rest (no drag): Σ over the grains of
