@@ -1,12 +1,13 @@
-"""Single-grain sedimentation in the Glowinski channel (W6.2.1) and its resolution dependence.
+"""Single-grain sedimentation in the Glowinski channel (W6.2.1) and what moves it.
 
     python experiments/sedimentation.py [--quick]
 
-Runs the seed's resolution (fluid 1.5 mm → 1.538 mm fitted, h 3 mm, d 2.5 mm) and fluid
-spacings 1.0 and 2.5 mm (h = 2Δx), plus the seed resolution with the 'gradient' buoyancy
-and with the 3D-mapped voidage in the fluid equations. Writes experiments/results/sedimentation.json
-(errors vs Zhang 2019 FPM, settling velocity, run time), sedimentation_y.csv (y(t) of each
-run) and sedimentation.png (y(t) and v(t) against the reference).
+Runs the scene as built (fluid 1.5 mm → 1.538 mm fitted, h = 2d = 5 mm, cylinder drag,
+added mass), at fluid spacings 2 and 1 mm, without the added mass, at W6.2.1's h = 3 mm,
+and with the 'gradient' buoyancy and the 3D-mapped voidage in the fluid equations. Writes
+experiments/results/sedimentation.json (errors vs Zhang 2019 FPM, settling velocity, run
+time), sedimentation_y.csv (y(t) of each run) and sedimentation.png (y(t) and v(t)
+against the reference).
 """
 from __future__ import annotations
 
@@ -25,11 +26,13 @@ from fpsi_jax.cases.sedimentation import (SEDIMENTATION_REFERENCE, grain_run,
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 
 RUNS = {   # label: (builder overrides, physics options)
-    "seed dx 1.5 mm, h 3 mm": ({}, {}),
-    "dx 1.0 mm, h 2 mm": ({"dx": 0.001, "h0": 0.002, "dx_boundary": 0.001}, {}),
-    "dx 2.5 mm, h 5 mm": ({"dx": 0.0025, "h0": 0.005, "dx_boundary": 0.0025}, {}),
-    "seed, gradient buoyancy": ({}, {"fpi_pressure": "gradient"}),
-    "seed, mapped voidage in the fluid": ({"voidage": "mapped"}, {}),
+    "as built: dx 1.54 mm, h 5 mm, added mass": ({}, {}),
+    "dx 2 mm": ({"dx": 0.002}, {}),
+    "dx 1 mm": ({"dx": 0.001}, {}),
+    "no added mass": ({"added_mass": False}, {}),
+    "W6.2.1's h 3 mm": ({"h0": 0.003}, {}),
+    "gradient buoyancy": ({}, {"fpi_pressure": "gradient"}),
+    "mapped voidage in the fluid": ({"voidage": "mapped"}, {}),
 }
 
 if __name__ == "__main__":
@@ -50,7 +53,8 @@ if __name__ == "__main__":
         b = scene.builder_kwargs
         rms, v_ours, v_ref = sedimentation_metrics(t, x[:, 1], ref, b["y0"])
         eps = float(np.mean(e[(t > 0.2) & (t < 0.6)])) if t[-1] > 0.6 else float(np.mean(e))
-        slip_root = terminal_slip(eps, b["rho_grain"], b["rho_fluid"], b["d"], b["mu"], 9.81)
+        slip_root = terminal_slip(eps, b["rho_grain"], b["rho_fluid"], b["d"], b["mu"], 9.81,
+                                  scene.options["drag"])
         hit = t[np.argmax(x[:, 1] <= b["d"] / 2 + 1e-4)] if np.any(x[:, 1] <= b["d"] / 2 + 1e-4) else None
         rec = {"run": label, "fluid_dx_mm": 1e3 * scene.params.sph.dp, "h_mm": 1e3 * b["h0"],
                "dx_over_d": scene.params.sph.dp / b["d"], "n_fluid": scene.fluid.n,

@@ -66,6 +66,11 @@ Choices the seeds leave open (docs/physics.md, docs/design.md):
   Wen–Yu's form with the cylinder's coefficient, β = (2/π) C_D,cyl ε(1−ε) ρ_f s ε^(−2.65)/d
   (the same voidage function), so that β/(1−ε) s V_p → ½ρ_f s² d C_D,cyl as ε → 1; a
   packed bed (ε ≤ 0.8) keeps Ergun's permeability, as for spheres.
+* Kernel against grain. Every sum here is over the grain's kernel support, so an isolated
+  grain is averaged only when its kernel is wider than it: with h = 1.2 d the fluid
+  particles on a settling grain's path pass through it and its speed moves by ±30 % with
+  the fluid spacing; with h = 2d (Robinson, Ramaioli & Luding 2014) within 1.7 points
+  over four spacings (docs/physics.md, *The coupling's kernel against the grain*).
 """
 from __future__ import annotations
 
