@@ -120,10 +120,12 @@ class FpiState:
     fluid equations W42–W43 use), and at the last SPH evaluation each grain's voidage ε_p
     (W18), Shepard fluid velocity ū_f (W21), wetness Σ_f V_f W_pf (0: dry) and ``force``,
     the fluid's force, pressure (buoyancy) + drag (W19), which the DEM sub-steps hold.
-    With the added mass (Physics.added_mass; else None): ``du_f`` (n_g, 2), the Shepard
-    fluid acceleration Du/Dt at each grain at the last evaluation (its C_a ρ_f V_p Du/Dt is
-    in ``force``), and ``added`` (n_g, 2), the added-mass force C_a ρ_f V_p (Du/Dt − Δv_p/Δt)
-    the grain took over the last step's sub-steps, whose reaction goes to the fluid."""
+    With the added mass (Physics.added_mass; else None): ``m_a`` (n_g,), each grain's added
+    mass at the last evaluation (C_a ρ_f V_p, or less where its fluid cannot exchange that
+    much stably: fpi.added_mass_limit), ``du_f`` (n_g, 2), the Shepard fluid acceleration
+    Du/Dt at each grain (its m_a Du/Dt is in ``force``), and ``added`` (n_g, 2), the
+    added-mass force m_a (Du/Dt − Δv_p/Δt) the grain took over the last step's sub-steps,
+    whose reaction goes to the fluid."""
 
     idx: Any
     eps: Any
@@ -131,6 +133,7 @@ class FpiState:
     u_f: Any
     wet: Any
     force: Any
+    m_a: Any = None
     du_f: Any = None
     added: Any = None
 

@@ -77,6 +77,7 @@ def allocated_state(scene: Scene, phys: Physics) -> State:
             fpi_state = FpiState(
                 idx=jnp.asarray(k, jnp.int32), eps=a(np.ones(fl.n)), eps_p=a(np.ones(ng)), u_f=a(np.zeros((ng, 2))),
                 wet=a(np.zeros(ng)), force=a(np.zeros((ng, 2))),
+                m_a=a(np.zeros(ng)) if phys.added_mass else None,
                 du_f=a(np.zeros((ng, 2))) if phys.added_mass else None,
                 added=a(np.zeros((ng, 2))) if phys.added_mass else None)
     if scene.solid is not None:

@@ -109,14 +109,12 @@ def wet_grains(phys: Physics, state: State):
 
 
 def grain_added_mass(phys: Physics, params: Params, state: State):
-    """(n_solid,) the added mass C_a ρ_f V_p on each wet grain's row (fpi.added_mass; 0
-    elsewhere), or None when Physics.added_mass is off."""
+    """(n_solid,) each grain's added mass of the last SPH evaluation on its disc row
+    (FpiState.m_a; 0 elsewhere), or None when Physics.added_mass is off."""
     if not (phys.has_fpi and phys.added_mass):
         return None
     fp, s = state.fpi, state.solid
-    r = s.radius[fp.idx]
-    m_a = fpi.added_mass(params.fpi.added_mass, params.sph.rho0, jnp.pi * r * r, fp.wet)
-    return jnp.zeros_like(s.mass).at[fp.idx].set(m_a)
+    return jnp.zeros_like(s.mass).at[fp.idx].set(fp.m_a)
 
 
 def _moving_rows(phys: Physics):
@@ -790,7 +788,7 @@ def grain_forces(phys: Physics, params: Params, state: State, fam: SphFamily,
             acc, back = f.acc, force
             if phys.added_mass:      # the buoyancy back first: Du/Dt is read after it
                 acc, back = acc + reaction(force - drag), drag
-    held, du_f = force, None
+    held, du_f, m_a = force, None, None
     if phys.added_mass:
         # Du/Dt is the fluid's acceleration under its pressure, viscosity and gravity with
         # the grains' buoyancy handed back, not their drag; the grains hold m_a Du/Dt with
@@ -798,14 +796,15 @@ def grain_forces(phys: Physics, params: Params, state: State, fam: SphFamily,
         # sub-steps (discs) goes back to the fluid with the drag
         with jax.named_scope("fpi.added_mass"):
             du_f = fpi.fluid_acceleration(rows, acc)
-            m_a = fpi.added_mass(params.fpi.added_mass, sp.rho0, fam.vol_p, wet)
+            m_a = jnp.minimum(fpi.added_mass(params.fpi.added_mass, sp.rho0, fam.vol_p, wet),
+                              fpi.added_mass_limit(rows, f.mass))
             held = force + m_a[:, None] * du_f
             back = back + fp.added
     with jax.named_scope("fpi.reaction"):
         acc = acc + reaction(back)
     return state.replace(fluid=f.replace(acc=acc),
                          fpi=fp.replace(eps=lvl.eps, eps_p=eps_p, u_f=u_f, wet=wet,
-                                        force=held, du_f=du_f))
+                                        force=held, m_a=m_a, du_f=du_f))
 
 
 def evaluate_fluid(phys: Physics, params: Params, state: State, dt) -> State:

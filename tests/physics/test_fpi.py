@@ -343,3 +343,21 @@ def test_fluid_acceleration_is_the_shepard_average_and_zero_when_dry():
     w = np.asarray(rows.w[0, :2])
     np.testing.assert_allclose(du[0], [w[0] / w.sum(), 3.0 * w[1] / w.sum()], rtol=1e-6)
     np.testing.assert_array_equal(du[1], [0.0, 0.0])
+
+
+def test_added_mass_limit_is_half_the_mass_the_weights_see_shared_between_grains():
+    """½ / Σ_f s_pf L_f/m_f with s the Shepard weights and L_f the reaction shares f takes
+    from all grains: one grain with two fluid neighbours of weights 3:1 and masses 2 and 1
+    g gets ½ / (0.75²/2 + 0.25²/1) = 1.455 g; a second grain on the same two particles
+    halves it."""
+    z = jnp.zeros((1, 2, 2))
+    one = fpi.GrainRows(jnp.asarray([[0, 1]]), jnp.asarray([[True, True]]),
+                        jnp.asarray([[3.0, 1.0]]), jnp.asarray([[1.0, 1.0]]), z, z[..., 0])
+    m_f = jnp.asarray([2.0e-3, 1.0e-3])
+    want = 0.5 / (0.75 ** 2 / 2.0e-3 + 0.25 ** 2 / 1.0e-3)
+    assert float(fpi.added_mass_limit(one, m_f)[0]) == pytest.approx(want, rel=1e-12)
+    two = fpi.GrainRows(jnp.asarray([[0, 1], [0, 1]]), jnp.ones((2, 2), bool),
+                        jnp.asarray([[3.0, 1.0], [3.0, 1.0]]), jnp.ones((2, 2)),
+                        jnp.zeros((2, 2, 2)), jnp.zeros((2, 2)))
+    np.testing.assert_allclose(np.asarray(fpi.added_mass_limit(two, m_f)), want / 2,
+                               rtol=1e-12)
