@@ -3,11 +3,16 @@ the same quasi-steady drag law the simulator uses, with and without its added ma
 fluid that rises at a fixed fraction κ of the grain's speed (the mean return flow the SPH
 fluid resolves at the grain: ū ≈ 0.1 |v_p| at the seed's resolution).
 
-    (m_p + C_a ρ_f V_p) dv/dt = −(ρ_p − ρ_f) V_p g + F_drag(ε, ū − v)
+    (m_p + C_a ρ_f V_p) dv/dt = −(ρ_p − ρ_f) V_p g + F_drag(ε, ū − v) [+ F_H]
 
 It shows what the law itself gives against Zhang et al. 2019's y(t), apart from the SPH
 fluid: RMS(y − y_ref)/fall and the settling velocity over 0.2–0.6 s, as
-``fpsi validate sedimentation`` measures them.
+``fpsi validate sedimentation`` measures them. The rows with ``history`` add a
+Basset-type force with the short-time kernel of a cylinder (not in the simulator): the
+Stokes layer's wall shear μ U_t/√(πν(t − τ)) under the potential-flow slip U_t = 2U sin θ,
+summed over the perimeter, F_H = −2√π a √(ρ_f μ) ∫ (dU/dτ)/√(t − τ) dτ per unit length,
+U the slip. It holds while the layer is thinner than the disc, √(νt) < a (t < 0.16 s
+here).
 
     .venv/bin/python experiments/sedimentation_ode.py     # -> results/sedimentation_ode.csv
 """
@@ -26,15 +31,22 @@ D, RHO_P, RHO_F, MU, G, Y0 = 0.0025, 1250.0, 1000.0, 0.01, 9.81, 0.04
 EPS = 0.98          # the grain's voidage in the simulator at h = 2d
 
 
-def fall(c_a, kappa, law=Drag.CYLINDER, dt=1.0e-4, t_end=0.8):
+def fall(c_a, kappa, history=False, law=Drag.CYLINDER, dt=1.0e-4, t_end=0.8):
     """(t, y) of the grain released from rest at y0 (semi-implicit Euler; it rests at y = d/2)."""
     vol = np.pi * D * D / 4
     eps = np.array([EPS])
-    y, v, ts, ys = Y0, 0.0, [], []
+    k_h = 2.0 * np.sqrt(np.pi) * (D / 2) * np.sqrt(RHO_F * MU) if history else 0.0
+    y, v, ts, ys, d_slip = Y0, 0.0, [], [], []
     for i in range(int(round(t_end / dt))):
+        t = (i + 1) * dt
         f = float(fpi.drag_force(eps, np.array([[0.0, -kappa * v]]), np.array([[0.0, v]]),
                                  np.array([vol]), RHO_F, D, MU, law)[0, 1])
-        v += dt * (f - (RHO_P - RHO_F) * vol * G) / ((RHO_P + c_a * RHO_F) * vol)
+        if history and d_slip:
+            t_j = (np.arange(len(d_slip)) + 0.5) * dt
+            f -= k_h * float(np.sum(np.asarray(d_slip) / np.sqrt(t - t_j)))
+        v_new = v + dt * (f - (RHO_P - RHO_F) * vol * G) / ((RHO_P + c_a * RHO_F) * vol)
+        d_slip.append((1.0 + kappa) * (v_new - v))
+        v = v_new
         y += dt * v
         if y < D / 2:
             y, v = D / 2, 0.0
@@ -47,15 +59,16 @@ def main():
     ref = load_csv(SEDIMENTATION_REFERENCE)
     ref = ref[np.argsort(ref[:, 0])]
     rows = []
-    for c_a in (0.0, 1.0):
-        for kappa in (0.0, 0.1):
-            t, y = fall(c_a, kappa)
-            rms, v, v_ref = sedimentation_metrics(t, y, ref, Y0)
-            ahead = float(np.interp(0.2, t, y) - np.interp(0.2, ref[:, 0], ref[:, 1]))
-            row = dict(c_a=c_a, kappa=kappa, rms_over_fall=rms, v_settle=v, v_ref=v_ref,
-                       v_error=(v - v_ref) / v_ref, y_minus_ref_at_0_2s_mm=1e3 * ahead)
-            rows.append(row)
-            print(row, flush=True)
+    for c_a, kappa, history in ((0.0, 0.0, False), (0.0, 0.1, False), (1.0, 0.0, False),
+                                (1.0, 0.1, False), (1.0, 0.1, True)):
+        t, y = fall(c_a, kappa, history, dt=2.0e-4 if history else 1.0e-4)
+        rms, v, v_ref = sedimentation_metrics(t, y, ref, Y0)
+        ahead = float(np.interp(0.2, t, y) - np.interp(0.2, ref[:, 0], ref[:, 1]))
+        row = dict(c_a=c_a, kappa=kappa, history=history, rms_over_fall=rms, v_settle=v,
+                   v_ref=v_ref, v_error=(v - v_ref) / v_ref,
+                   y_minus_ref_at_0_2s_mm=1e3 * ahead)
+        rows.append(row)
+        print(row, flush=True)
     write_rows("experiments/results/sedimentation_ode.csv", rows)
 
 
