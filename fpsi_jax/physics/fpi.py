@@ -50,14 +50,13 @@ Choices the seeds leave open (docs/physics.md, docs/design.md):
   instead of 7 % short).
 * Added mass (Physics.added_mass, off by default: the seeds have none). A grain that
   accelerates relative to the fluid accelerates the fluid around it:
-  F_a = C_a ρ_f V_p (Du/Dt − dv_p/dt), C_a = 1 for a circular cylinder (Lamb 1932): a
-  disc of ρ_p = 1.25 ρ_f settling from rest starts at 0.56 of the acceleration it has
-  without. The grain takes it as an
-  inertia m_p + m_a in the DEM sub-steps and m_a Du/Dt in the held fluid force
-  (:func:`added_mass`, :func:`fluid_acceleration`); what it took over the step,
-  :func:`added_mass_force`, goes back to the fluid with the drag. The fluid's side is
-  explicit, so m_a is held below what the grain's fluid can exchange stably
-  (:func:`added_mass_limit`: in a packed bed, not in open water).
+  F_a = C_a ρ_f V_p (Du/Dt − dv_p/dt), C_a = 1 for a circular cylinder (Lamb 1932): a disc
+  of ρ_p = 1.25 ρ_f settling from rest starts at 0.56 of the acceleration it has without.
+  The grain takes it as an inertia m_p + m_a in the DEM sub-steps and m_a Du/Dt in the
+  held fluid force (:func:`added_mass`, :func:`fluid_acceleration`); what it took over the
+  step, :func:`added_mass_force`, goes back to the fluid with the drag. The fluid's side
+  is explicit, so m_a is held below what the grain's fluid can exchange stably
+  (:func:`added_mass_limit`: binding in a packed bed, not in open water).
 * V_p is the disc's area πR² per unit thickness, the same as the disc's mass ρ_p πR². Under
   the seed's law (Physics.drag = 'sphere') the force per unit mass, and with it the terminal
   velocity, is then exactly that of a sphere of diameter d.
@@ -361,8 +360,9 @@ def grain_drag(rows: GrainRows, eps_f, v_f, v_p, vol_p, d_p, rho_f, mu, voidage_
 
 def fluid_acceleration(rows: GrainRows, acc_f):
     """Du/Dt at each grain: the Shepard average of its fluid neighbours' accelerations
-    (the weights of ū_f, W21); 0 for a dry grain. The fluid's acceleration here is that of
-    its own pressure, viscous and gravity forces, before the grains' reaction."""
+    ``acc_f`` (the weights of ū_f, W21); 0 for a dry grain. The step passes the fluid's
+    acceleration under its own pressure, viscous and gravity forces with the grains'
+    buoyancy handed back, not their drag (the grain's own disturbance)."""
     du, wet = shepard(gather(acc_f, rows.idx, 0.0), rows.w, rows.vol, rows.valid)
     return jnp.where((wet > 0)[:, None], du, 0.0)
 

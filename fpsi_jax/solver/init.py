@@ -147,6 +147,6 @@ def refresh_rates(phys: Physics, state: State, params: Params) -> State:
     if phys.has_solid:
         ev = stages.disc_forces(phys, params, state, 0.0, stages.fluid_force_on_discs(phys, state),
                                 stages.wet_grains(phys, state),
-                                stages.grain_added_mass(phys, params, state))
+                                stages.grain_added_mass(phys, state))
         state = state.replace(solid=state.solid.replace(acc=ev.solid.acc, alpha=ev.solid.alpha))
     return state

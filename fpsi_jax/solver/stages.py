@@ -108,7 +108,7 @@ def wet_grains(phys: Physics, state: State):
     return mask, state.fpi.idx
 
 
-def grain_added_mass(phys: Physics, params: Params, state: State):
+def grain_added_mass(phys: Physics, state: State):
     """(n_solid,) each grain's added mass of the last SPH evaluation on its disc row
     (FpiState.m_a; 0 elsewhere), or None when Physics.added_mass is off."""
     if not (phys.has_fpi and phys.added_mass):
@@ -338,7 +338,7 @@ def discs(phys: Physics, params: Params, state: State) -> State:
     t0 = (state.step - 1) * params.dt      # the time at the start of the step
     f_fluid = fluid_force_on_discs(phys, state)
     wet = wet_grains(phys, state)
-    m_added = grain_added_mass(phys, params, state)
+    m_added = grain_added_mass(phys, state)
     # the loop carries the DEM part of the state only
     part = State(t=state.t, step=state.step, fluid=None, boundary=None, nbrs=None,
                  status=state.status, solid=state.solid, bonds=state.bonds,
