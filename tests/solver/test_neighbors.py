@@ -46,18 +46,25 @@ def test_cells_take_their_own_multiplier_and_grain_scenes_double_them():
     assert grains.cell_multiplier == 2.0
 
 
-def _dam_break_list(every_column=True):
+def _dam_break_list(every_column=True, strips=False):
     """The dam break's SPH list; ``every_column``: with the boundary rows listing every
-    particle, as jax-md does (NeighborConfig.fluid_only_rows off)."""
+    particle, as jax-md does (NeighborConfig.fluid_only_rows off); ``strips``: the strip
+    search (the SPH family's default) instead of jax-md's 3 × 3 cells, which the DEM
+    family keeps and the tests that compare with jax-md slot for slot use."""
     import dataclasses
 
     import jax.numpy as jnp
     sc = cases.build("dam_break", dx=0.01)
-    cfg = Physics.for_scene(sc).neighbors
+    cfg = dataclasses.replace(Physics.for_scene(sc).neighbors, strips=strips)
     if every_column:
         cfg = dataclasses.replace(cfg, fluid_only_rows=())
     x = jnp.asarray(np.concatenate([sc.fluid.x, sc.boundary.x]), jnp.float32)
     return cfg, neighbors.shift(cfg, x), neighbors.allocate(cfg, x)
+
+
+def test_the_sph_family_searches_strips_and_the_dem_family_cells():
+    phys = Physics.for_scene(cases.build("fpsi_failure"))
+    assert phys.neighbors.strips and not phys.dem_neighbors.strips
 
 
 def test_boundary_rows_list_only_the_fluid():
@@ -343,7 +350,7 @@ def _check_allocate_equals_jax_md(scene, kw, extra):
     if phys.dem_neighbors is not None:
         fams.append((phys.dem_neighbors, sc.solid.x))
     for cfg, x in fams:
-        cfg = dataclasses.replace(cfg, extra_capacity=extra, fluid_only_rows=())
+        cfg = dataclasses.replace(cfg, extra_capacity=extra, fluid_only_rows=(), strips=False)
         x = jnp.asarray(x, jnp.float32)
         got = neighbors.allocate(cfg, x)
         want = neighbors.neighbor_fns(cfg).allocate(neighbors.shift(cfg, x),
@@ -514,3 +521,109 @@ def test_small_domain_warning_names_the_callers_line():
     with pytest.warns(UserWarning, match=r"O\(N\^2\)") as record:
         neighbors.allocate(cfg, x)
     assert record[0].filename == __file__
+
+
+def _most_in_a_strip(cfg, xs):
+    """The most particles in one strip of the strip search (five cells of side r/2 along
+    x, rows of cells along y), for any particle's cell, counted on the host with numpy."""
+    side, nx, ny = neighbors._strip_grid(cfg)
+    xs = np.asarray(xs, np.float64)[:cfg.n_columns or None]
+    cx = np.clip(np.floor(xs[:, 0] / side).astype(int), 0, nx - 1)
+    cy = np.clip(np.floor(xs[:, 1] / side).astype(int), 0, ny - 1)
+    grid = np.zeros((ny, nx + 4), int)
+    np.add.at(grid, (cy, cx + 2), 1)
+    strips = sum(grid[:, i:i + nx] for i in range(5))        # strip centred on each cell
+    return int(strips.max())
+
+
+@pytest.mark.parametrize("every_column", [True, False])
+@pytest.mark.parametrize("block", [0, 23])
+def test_strip_rebuild_lists_the_same_pairs_as_jax_md_cells(every_column, block):
+    """The strip search (NeighborConfig.strips) lists, row by row, the same neighbours as
+    the 3 × 3 cells (which equal jax-md's list, above), in another order, for positions
+    moved by up to a skin (a full row keeps another K of its neighbours), in one pass and in row blocks, with the wall rows listing
+    only fluid or every column; a row's neighbours fill its first slots, and squeezed
+    particles overflow the list."""
+    import dataclasses
+
+    import jax.numpy as jnp
+    cfg, xs, cells = _dam_break_list(every_column)
+    strips = dataclasses.replace(cfg, strips=True, row_block=block)
+    nbrs = neighbors.allocate(strips, xs + jnp.asarray(cfg.origin, xs.dtype))
+    assert neighbors.capacity(nbrs) == neighbors.capacity(cells)
+    n = xs.shape[0]
+    rng = np.random.default_rng(7)
+    for scale in (0.0, 0.3, 1.0):
+        xp = xs + jnp.asarray(rng.normal(0.0, scale * cfg.skin, xs.shape), xs.dtype)
+        got, want = neighbors.rebuild(strips, nbrs, xp), neighbors.rebuild(cfg, cells, xp)
+        a, b = np.asarray(got.idx), np.asarray(want.idx)
+        assert int(got.error.code) == int(want.error.code) == (scale > 0.5)   # rows full
+        room = (a < n).sum(axis=1) < a.shape[1]          # a full row keeps any K of its own
+        assert room.mean() > 0.95
+        np.testing.assert_array_equal(np.sort(a[room], axis=1), np.sort(b[room], axis=1))
+        assert not np.array_equal(a, b)                        # guard: another order
+        held = a < n
+        assert np.all(held[:, :-1] >= held[:, 1:])             # filled from the first slot
+    squeezed = xs.mean(axis=0) + 0.6 * (xs - xs.mean(axis=0))
+    assert neighbors.overflowed(neighbors.rebuild(strips, nbrs, squeezed))
+
+
+@pytest.mark.parametrize("packed", [True, False])
+def test_strip_capacity_is_the_fullest_strip_and_grows_to_its_need(packed, monkeypatch):
+    """The strip search's cell capacity is the fullest strip × the multiplier (counted by
+    hand); squeezed particles overflow it (the cell flag), the rebuild's need is the
+    fullest strip, and the list grown for it lists every pair again. With the packed-key
+    sort and with the argsort it falls back to for large grids, the same lists."""
+    import dataclasses
+
+    import jax.numpy as jnp
+    from jax_md import partition
+    if not packed:
+        monkeypatch.setattr(neighbors, "_PACKED_LIMIT", 0)
+    cfg, xs, cells = _dam_break_list(every_column=False)
+    cfg = dataclasses.replace(cfg, strips=True)
+    origin = jnp.asarray(cfg.origin, xs.dtype)
+    nbrs = neighbors.allocate(cfg, xs + origin)
+    fullest = _most_in_a_strip(cfg, xs)
+    assert nbrs.cell_list_capacity == int(fullest * cfg.capacity_multiplier)
+    c = xs.mean(axis=0)
+    xp = c + 0.6 * (xs - c)
+    over, need = neighbors._rebuild(cfg, nbrs, xp)
+    assert int(over.error.code) & int(partition.PartitionErrorCode.CELL_LIST_OVERFLOW)
+    assert int(need[1]) == _most_in_a_strip(cfg, xp) > nbrs.cell_list_capacity
+    grown = neighbors.grow(cfg, over, need)
+    assert grown.min_cell_capacity == int(np.ceil(int(need[1]) * cfg.capacity_multiplier))
+    fits = neighbors.allocate(grown, xp + origin)
+    again = neighbors.rebuild(grown, fits, xp)
+    assert not neighbors.overflowed(again)
+    roomy = dataclasses.replace(cfg, strips=False, capacity_multiplier=3.0)
+    want = neighbors.allocate(roomy, xp + origin).idx
+    k = neighbors.capacity(fits)
+    np.testing.assert_array_equal(np.sort(np.asarray(again.idx), axis=1),
+                                  np.sort(np.asarray(want), axis=1)[:, :k])
+
+
+def test_strip_column_limit_leaves_out_only_the_columns_past_it():
+    """NeighborConfig.n_columns with the strip search: each row lists the full list's
+    neighbours below the limit and nothing else, and the strips hold only the columns (the
+    fullest strip counted without the rest)."""
+    import dataclasses
+
+    import jax.numpy as jnp
+    cfg, xs, nbrs = _dam_break_list(strips=True)
+    n = xs.shape[0]
+    limit = n - 200
+    cut = dataclasses.replace(cfg, n_columns=limit)
+    full = np.asarray(neighbors.rebuild(cfg, nbrs, xs).idx)
+    got = np.asarray(neighbors.rebuild(cut, nbrs, xs).idx)
+    for row_full, row in zip(full, got):
+        kept = [j for j in row_full if j < limit]
+        np.testing.assert_array_equal(np.sort(row[:len(kept)]), np.sort(kept))
+        assert np.all(row[len(kept):] == n)
+    few = dataclasses.replace(cfg, n_columns=n // 3)
+    small = neighbors.allocate(few, jnp.asarray(np.asarray(xs) + np.asarray(cfg.origin)))
+    assert small.cell_list_capacity == int(_most_in_a_strip(few, xs) * cfg.capacity_multiplier)
+    order, lo, hi = neighbors._strip_bounds(few, xs)        # the columns sort first
+    assert int(np.max(np.asarray(hi))) == few.n_columns
+    np.testing.assert_array_equal(np.sort(np.asarray(order)[:few.n_columns]),
+                                  np.arange(few.n_columns))
