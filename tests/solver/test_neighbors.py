@@ -407,17 +407,12 @@ def test_rebuild_in_row_blocks_equals_jax_md_dense_list():
         assert bool(got.did_buffer_overflow) == bool(want.did_buffer_overflow)
 
 
-def test_column_limit_leaves_out_only_the_columns_past_it():
-    """NeighborConfig.n_columns (a scene's grains, last in the SPH family, are nobody's
-    column): each row lists the full list's neighbours below the limit and nothing else;
-    only the columns are put in the cells, so the cells need no room for the rest. (Within
-    a cell the order may rotate: a cell's particles take the slots of their sorted
-    positions modulo the capacity, as in jax-md, and the positions shift.)"""
+def _rows_below_the_column_limit(cfg, nbrs, xs, limit):
+    """(the config with n_columns = limit, the full list's rows, the limited list's rows),
+    having checked that each limited row holds its full row's neighbours below the limit,
+    first, and padding after them."""
     import dataclasses
-    import jax.numpy as jnp
-    cfg, xs, nbrs = _dam_break_list()
     n = xs.shape[0]
-    limit = n - 200
     cut = dataclasses.replace(cfg, n_columns=limit)
     full = np.asarray(neighbors.rebuild(cfg, nbrs, xs).idx)
     got = np.asarray(neighbors.rebuild(cut, nbrs, xs).idx)
@@ -425,6 +420,20 @@ def test_column_limit_leaves_out_only_the_columns_past_it():
         kept = [j for j in row_full if j < limit]
         np.testing.assert_array_equal(np.sort(row[:len(kept)]), np.sort(kept))
         assert np.all(row[len(kept):] == n)
+    return cut, full, got
+
+
+def test_column_limit_leaves_out_only_the_columns_past_it():
+    """NeighborConfig.n_columns (a scene's grains, last in the SPH family, are nobody's
+    column): each row lists the full list's neighbours below the limit and nothing else;
+    only the columns are put in the cells, so the cells need no room for the rest. (Within
+    a cell the order may rotate: a cell's particles take the slots of their sorted
+    positions modulo the capacity, as in jax-md, and the positions shift.)"""
+    import jax.numpy as jnp
+    cfg, xs, nbrs = _dam_break_list()
+    n = xs.shape[0]
+    limit = n - 200
+    cut, full, got = _rows_below_the_column_limit(cfg, nbrs, xs, limit)
     removed = int(((full >= limit) & (full < n)).sum())
     assert removed > 0 and int((got == n).sum() - (full == n).sum()) == removed
     small = neighbors.allocate(cut, jnp.asarray(np.asarray(xs) + np.asarray(cfg.origin)))
@@ -612,14 +621,7 @@ def test_strip_column_limit_leaves_out_only_the_columns_past_it():
     import jax.numpy as jnp
     cfg, xs, nbrs = _dam_break_list(strips=True)
     n = xs.shape[0]
-    limit = n - 200
-    cut = dataclasses.replace(cfg, n_columns=limit)
-    full = np.asarray(neighbors.rebuild(cfg, nbrs, xs).idx)
-    got = np.asarray(neighbors.rebuild(cut, nbrs, xs).idx)
-    for row_full, row in zip(full, got):
-        kept = [j for j in row_full if j < limit]
-        np.testing.assert_array_equal(np.sort(row[:len(kept)]), np.sort(kept))
-        assert np.all(row[len(kept):] == n)
+    _rows_below_the_column_limit(cfg, nbrs, xs, n - 200)
     few = dataclasses.replace(cfg, n_columns=n // 3)
     small = neighbors.allocate(few, jnp.asarray(np.asarray(xs) + np.asarray(cfg.origin)))
     assert small.cell_list_capacity == int(_most_in_a_strip(few, xs) * cfg.capacity_multiplier)
