@@ -487,16 +487,23 @@ def _dense_rows(cl, xs, cut, k, block_rows=0, n_columns=0, fluid_only=()):
         r2 = jnp.sum((x[:, None, :] - cpos) ** 2, axis=-1)
         me = row0 + jnp.arange(rows, dtype=jnp.int32)
         valid = (r2 < cut * cut) & (cand < n_cols) & (cand != me[:, None])
-        wall_row = jnp.zeros((rows,), bool)
-        if fluid_only:
-            first, stop, n_f = fluid_only
-            wall_row = (me >= first) & (me < stop)
-            valid = valid & (~wall_row[:, None] | (cand < n_f))
+        valid, wall_row = _fluid_only(valid, cand, me, fluid_only)
         idx, count = _compact(valid, cand, cells.shape[1], cap, k, n)
         return idx, count, jnp.where(wall_row, count, 0)
 
     idx, counts, walls = over_row_blocks(block, n, block_rows)
     return idx, jnp.max(counts), jnp.max(walls)
+
+
+def _fluid_only(valid, cand, me, fluid_only):
+    """The candidate mask with the rows ``me`` that lie in ``fluid_only`` = (first, stop,
+    n_fluid) keeping only candidates below n_fluid (NeighborConfig.fluid_only_rows), and
+    which rows those are ((): none)."""
+    if not fluid_only:
+        return valid, jnp.zeros(me.shape, bool)
+    first, stop, n_f = fluid_only
+    wall_row = (me >= first) & (me < stop)
+    return valid & (~wall_row[:, None] | (cand < n_f)), wall_row
 
 
 def _compact(valid, cand, n_groups, cap, k, pad):
@@ -603,11 +610,7 @@ def _strip_rows(cfg: NeighborConfig, xs, cap: int, k: int, block_rows=0):
         r2 = sum((x[:, None, a] - got[..., a]) ** 2 for a in range(dim))
         me = row0 + jnp.arange(rows, dtype=jnp.int32)
         valid = inside & (r2 < cut2) & (cand != me[:, None])
-        wall_row = jnp.zeros((rows,), bool)
-        if cfg.fluid_only_rows:
-            first, stop, n_f = cfg.fluid_only_rows
-            wall_row = (me >= first) & (me < stop)
-            valid = valid & (~wall_row[:, None] | (cand < n_f))
+        valid, wall_row = _fluid_only(valid, cand, me, cfg.fluid_only_rows)
         idx, count = _compact(valid, cand, n_strips, cap, k, n)
         return idx, count, jnp.where(wall_row, count, 0)
 
