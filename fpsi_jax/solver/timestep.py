@@ -93,8 +93,9 @@ def sph_dt(scene: Scene, params: Params, a_max: float | None = None,
 
 
 def dem_dt(scene: Scene, params: Params, phys: Physics | None = None) -> float:
-    """DEM bound (physics.md §Time integration, with DEM_DT_FACTOR, or FSI_DEM_DT_FACTOR =
-    0.2 for a structure the fluid moves (Scene.fsi_coupled), instead of 0.2):
+    """DEM bound (physics.md §Time integration, with DEM_DT_FACTOR = 0.55, and
+    FSI_DEM_DT_FACTOR, the same, for a structure the fluid moves (Scene.fsi_coupled); the
+    seeds took 0.2):
     Δt ≤ factor √(m_min/k_max), and the same for rotation, factor √(J_min/k_rot). k_max adds the contact spring and the stiffest bond
     (k̄ A); k_rot = k̄_n I + (k̄_s A + k_s) R_max² for the stiffest bond."""
     so, dp, bp = scene.solid, params.dem, params.bond
