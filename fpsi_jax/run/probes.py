@@ -242,7 +242,7 @@ def write_csv(path: str, probes, times, values: dict) -> str:
     cols = [np.asarray(times, float)[:, None]]
     header = ["t [s]"]
     for p in probes:
-        cols.append(np.asarray(values[p.name], float).reshape(len(times), -1))
+        cols.append(np.asarray(values[p.name], float).reshape(len(times), len(p.components)))
         header += p.columns()
     table = np.concatenate(cols, axis=1)
     with open(path, "w", newline="") as fh:

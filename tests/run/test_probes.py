@@ -130,3 +130,31 @@ def test_simulate_records_probes_every_step_in_result_hdf5_and_csv(tmp_path):
     assert table.shape == (n, 4)
     head = open(tmp_path / "run_probes.csv").readline().strip()
     assert head == "t [s],disc.ux [m],disc.uy [m],front.x [m]"
+
+
+def test_probe_csv_of_a_run_that_stopped_before_its_first_step_has_the_header_only(tmp_path):
+    """A run unstable at its first step leaves no probe row: the CSV is its header (the
+    driver then reports the instability, not a reshape of the empty columns)."""
+    sc = scene()
+    probes = [P.displacement("disc", sc, [3]), P.front("front", sc)]
+    path = P.write_csv(str(tmp_path / "p.csv"), probes, np.zeros(0),
+                       {"disc": np.zeros((0, 2)), "front": np.zeros((0, 1))})
+    lines = open(path).read().splitlines()
+    assert lines == ["t [s],disc.ux [m],disc.uy [m],front.x [m]"]
+
+
+def test_a_run_unstable_at_its_first_step_reports_the_instability_with_probes(tmp_path):
+    from fpsi_jax.model.errors import SimulationError
+    sc = scene()
+    sc.params = sc.params.replace(dem=DemParams(kn=1e4, ks=5e3))
+    sc.solid.structure = None
+    sc.t_end = 0.01
+    sc.solid.v = np.array(sc.solid.v, float)
+    sc.solid.v[3] = [0.0, -1e5]            # out of the domain within the first step
+    out = str(tmp_path / "run.h5")
+    with pytest.raises(SimulationError, match="step 1"):
+        simulate(sc, output=out, probes=[P.displacement("disc", sc, [3])], progress=False,
+                 every=0.004)
+    assert read(out).status == "unstable"
+    assert open(tmp_path / "run_probes.csv").read().splitlines() == \
+        ["t [s],disc.ux [m],disc.uy [m]"]
