@@ -21,7 +21,8 @@ from ..build import (boundary_block, boundary_layers, box_walls, dam_speed, disc
 from ..model.params import BondParams, DemParams, FpiParams, Params
 from ..model.scene import BondBlock, FluidBlock, Scene, WallBlock
 from ..run import probes as P
-from .reader import fail
+from . import data
+from .reader import FileError, fail
 
 GROUPS = ("discs", "grains", "structure", "kinematic")
 
@@ -609,6 +610,8 @@ def _probes(path, spec, scene, bodies):
                 p = P.bed_profile(name, scene, idx, x0, x1, pr["bins"], pr["floor"])
             else:
                 p = P.broken_bonds(name, scene, idx)
+        except FileError:            # need(): already one line naming the file and key
+            raise
         except Exception as e:
             if isinstance(e, SystemExit):
                 raise
@@ -620,6 +623,10 @@ def _probes(path, spec, scene, bodies):
             if not os.path.exists(ref):
                 fail(path, "probe", f"key 'reference' = {pr['reference']!r}: no such file",
                      pr, i)
+            try:                     # read now, so that a bad curve stops before the run
+                data.match(ref, p)
+            except data.DataError as e:
+                fail(path, "probe", f"key 'reference': {e}", pr, i)
             refs[name] = ref
     return probes, refs
 

@@ -49,9 +49,13 @@ def read_csv(path: str):
     """(names, units, SI values (n, c)) of a data file; every column converted to SI."""
     if not os.path.exists(path):
         raise DataError(f"{path}: no such data file")
-    with open(path, newline="") as fh:
-        rows = [r for r in csv.reader(line for line in fh
-                                      if line.strip() and not line.lstrip().startswith("#"))]
+    try:
+        with open(path, newline="") as fh:
+            rows = [r for r in csv.reader(line for line in fh
+                                          if line.strip() and not line.lstrip().startswith("#"))]
+    except UnicodeDecodeError as e:
+        _fail(path, f"is not a text CSV file ({e.reason}); write the curve as 't [s], …' "
+              "columns")
     if not rows:
         _fail(path, "is empty")
     names, units, factors = [], [], []

@@ -64,7 +64,7 @@ def test_start_values_of_the_file_follow_the_fitted_names(sf):
 # --- refused input ----------------------------------------------------------------------------
 def _csv(tmp_path, text):
     p = tmp_path / "measured.csv"
-    p.write_text(text)
+    (p.write_bytes if isinstance(text, bytes) else p.write_text)(text)
     return str(p)
 
 
@@ -95,6 +95,8 @@ BAD = [
      ["measured.csv", "tip.ux"]),
     ("column of no probe component", ["--fit", "E"], "t [s], tip.rot [mm]\n0.05, 1\n0.1, 2\n",
      ["measured.csv", "no column measures probe 'tip'", "tip.ux [m], tip.uy [m]"]),
+    ("data not a text file (an HDF5 output)", ["--fit", "E"], b"\x89HDF\r\n\x1a\n\x00\xff",
+     ["measured.csv", "is not a text CSV file"]),
     ("no data file", ["--fit", "E", "--data", "missing.csv"], None,
      ["missing.csv", "no such data file"]),
     ("unknown target", ["--fit", "E", "--target", "spectrum"], None, ["spectrum"]),

@@ -126,9 +126,28 @@ def test_bad_file_one_line_exit_2_nothing_written(tmp_path, capsys, label, chang
     err = capsys.readouterr().err.strip()
     assert code == 2, err
     assert len(err.splitlines()) == 1, err
-    assert "flume.toml" in err
+    assert err.count("flume.toml") == 1, err          # located once, not twice
     for piece in expect:
         assert piece in err, (piece, err)
+    assert not os.path.exists(tmp_path / "out")
+
+
+@pytest.mark.parametrize("curve,expect", [
+    ("t [s], gate.ux [m]\n0.0, 0.0\n0.01, 0.001\n", "no column measures probe 'tip'"),
+    (b"\x89HDF\r\n\x1a\n\x00\x00\xff", "is not a text CSV file"),
+], ids=["wrong probe", "binary"])
+def test_a_bad_reference_curve_stops_before_the_run(tmp_path, capsys, curve, expect):
+    """The reference CSV is read with the scene file, so a curve that cannot be plotted
+    stops the run before anything is compiled or written (not after the run)."""
+    ref = tmp_path / "ref.csv"
+    (ref.write_bytes if isinstance(curve, bytes) else ref.write_text)(curve)
+    path = tmp_path / "flume.toml"
+    path.write_text(edit(GOOD, 'kind = "displacement"', 'kind = "displacement"\nreference = "ref.csv"'))
+    out = tmp_path / "out" / "run.h5"
+    code = cli.main(["run", str(path), "--out", str(out), "--quiet", "--plot"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert "[[probe]] 'tip'" in err and "key 'reference'" in err and expect in err, err
     assert not os.path.exists(tmp_path / "out")
 
 
