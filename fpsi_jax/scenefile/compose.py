@@ -560,6 +560,23 @@ def _auto_domain(tank, pad, headroom, fluid, boundary, solid, walls):
     return lo, hi
 
 
+def _probe_inside_domain(path, pr, i, scene):
+    """Refuse a probe's point, x or x range outside the scene's domain (it would read
+    nothing all run: a point typed in mm, say)."""
+    lo, hi = np.asarray(scene.domain_lo, float), np.asarray(scene.domain_hi, float)
+    span = f"x {lo[0]:.4g} … {hi[0]:.4g} m, y {lo[1]:.4g} … {hi[1]:.4g} m"
+    for key, axes in (("point", (0, 1)), ("x", (0,)), ("x_range", (0,))):
+        v = pr.get(key)
+        if v is None:
+            continue
+        vals = np.atleast_1d(np.asarray(v, float))
+        pts = vals.reshape(-1, len(axes)) if key == "point" else vals[:, None]
+        out = any(not (lo[a] <= p[k] <= hi[a]) for p in pts for k, a in enumerate(axes))
+        if out:
+            fail(path, "probe", f"key {key!r} = {v!r} lies outside the domain ({span})",
+                 pr, i)
+
+
 def _probes(path, spec, scene, bodies):
     probes, refs = [], {}
     folder = os.path.dirname(os.path.abspath(path))
@@ -589,6 +606,8 @@ def _probes(path, spec, scene, bodies):
             if pr[key] is None:
                 fail(path, "probe", f"key {key!r} is required for kind {kind!r}", pr, i)
             return pr[key]
+
+        _probe_inside_domain(path, pr, i, scene)
 
         try:
             if kind == "displacement":

@@ -89,6 +89,10 @@ rho = 1100.0
      ["[[probe]] 'tip'", "key 'kind'", "not a choice"]),
     ("probe needs key", lambda t: t + '\n[[probe]]\nname = "p"\nkind = "pressure"\n',
      ["[[probe]] 'p'", "key 'point' is required"]),
+    ("probe point outside", lambda t: t + '\n[[probe]]\nname = "p"\nkind = "pressure"\n'
+     'point = [3.0, -2.0]\n', ["[[probe]] 'p'", "key 'point'", "lies outside the domain"]),
+    ("level x outside", lambda t: t + '\n[[probe]]\nname = "h"\nkind = "water_level"\n'
+     'x = 5.0\n', ["[[probe]] 'h'", "key 'x' = 5.0 lies outside the domain"]),
     ("probe reference missing", lambda t: edit(t, 'kind = "displacement"',
                                                'kind = "displacement"\nreference = "no.csv"'),
      ["[[probe]] 'tip'", "key 'reference'", "no such file"]),
