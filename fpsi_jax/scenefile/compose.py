@@ -387,6 +387,7 @@ def compose(spec: dict, path: str) -> SceneFile:
                      f"{tank['width']}] × [0, {tank['height']}] m")
         elif tank["dx_boundary"] is not None:
             fail(path, "tank", "key 'dx_boundary': boundary particles need a [fluid]")
+        _bodies_inside(path, tank, groups)
         dem = has_discs if tank["dem_walls"] is None else tank["dem_walls"]
         if dem:
             w = box_walls(0.0, 0.0, tank["width"], tank["height"], top=tank["lid"])
@@ -407,6 +408,8 @@ def compose(spec: dict, path: str) -> SceneFile:
                 except Exception as e:
                     fail(path, "obstacle", f"key {how!r}: {e}", ob, i)
             dx_parts.append(dxo)
+            if tank is not None and not np.any(_in_tank(tank, xb_parts[-1])):
+                fail(path, "obstacle", f"lies wholly outside the tank {_tank_span(tank)}", ob, i)
         dem = has_discs if ob["dem_walls"] is None else ob["dem_walls"]
         if dem:
             a, b = _outline(ob)
@@ -558,6 +561,30 @@ def _auto_domain(tank, pad, headroom, fluid, boundary, solid, walls):
                for a, b in zip(lo, lo_need))
     hi = tuple(float(a) if a > c else float(c + margin) for a, c in zip(hi, hi_need))
     return lo, hi
+
+
+def _tank_span(tank):
+    return f"[0, {tank['width']:.4g}] × [0, {tank['height']:.4g}] m"
+
+
+def _in_tank(tank, x):
+    """(n,) whether points lie between the tank's side walls and above its floor (an open
+    top lets water and discs start above the walls' height)."""
+    return (x[:, 0] >= 0) & (x[:, 0] <= tank["width"]) & (x[:, 1] >= 0)
+
+
+def _bodies_inside(path, tank, groups):
+    """Refuse a disc group with a centre outside the tank (beyond a side wall or under the
+    floor): the DEM walls would throw it in at the first step, or it would never meet the
+    flow."""
+    seen = {}
+    for t, item, blk, _ in groups:
+        i = seen[t] = seen.get(t, -1) + 1
+        out = ~_in_tank(tank, np.asarray(blk.x))
+        if out.any():
+            x, y = np.asarray(blk.x)[np.argmax(out)]
+            fail(path, t, f"a disc centre at ({x:.4g}, {y:.4g}) m lies outside the tank "
+                 f"{_tank_span(tank)}", item, i)
 
 
 def _probe_inside_domain(path, pr, i, scene):

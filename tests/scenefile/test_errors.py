@@ -93,6 +93,13 @@ rho = 1100.0
      'point = [3.0, -2.0]\n', ["[[probe]] 'p'", "key 'point'", "lies outside the domain"]),
     ("level x outside", lambda t: t + '\n[[probe]]\nname = "h"\nkind = "water_level"\n'
      'x = 5.0\n', ["[[probe]] 'h'", "key 'x' = 5.0 lies outside the domain"]),
+    ("structure outside the tank", lambda t: edit(edit(t, "box = [0.2, 0.0, 0.21, 0.08]",
+                                                     "box = [0.45, 0.0, 0.46, 0.08]"),
+                                                "clamp = [0.2, 0.07, 0.21, 0.08]",
+                                                "clamp = [0.45, 0.07, 0.46, 0.08]"),
+     ["[[structure]] 'gate'", "a disc centre at", "lies outside the tank [0, 0.4]"]),
+    ("obstacle outside the tank", lambda t: t + '\n[[obstacle]]\nbox = [0.5, 0.0, 0.6, 0.05]\n',
+     ["[[obstacle]] #1", "lies wholly outside the tank"]),
     ("probe reference missing", lambda t: edit(t, 'kind = "displacement"',
                                                'kind = "displacement"\nreference = "no.csv"'),
      ["[[probe]] 'tip'", "key 'reference'", "no such file"]),
