@@ -78,8 +78,8 @@ def main():
     steps_after = res.n_steps - res.first_chunk_steps
     print(f"run: {res.n_steps} steps of dt = {dt:.4g} s to t = {float(res.state.t):.4f} s, "
           f"{n} discs, {scene.walls.n} walls, float{'64' if res.physics.x64 else '32'}")
-    print(f"wall {res.wall_s:.1f} s (compile + first chunk of {res.first_chunk_steps} steps "
-          f"{res.compile_s:.1f} s); after it {steps_after / run_s:.0f} steps/s, "
+    print(f"set-up and compilation {res.setup_s:.1f} s, stepping {res.wall_s:.1f} s (first "
+          f"chunk of {res.first_chunk_steps} steps {res.compile_s:.1f} s); after it {steps_after / run_s:.0f} steps/s, "
           f"{res.particle_steps_per_s / 1e6:.3f} M particle-steps/s; overall "
           f"{res.n_steps / res.wall_s:.0f} steps/s; {res.dem_rebuilds} neighbour rebuilds, "
           f"{res.reallocations} reallocations")

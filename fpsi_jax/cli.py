@@ -122,8 +122,8 @@ def cmd_run(args):
     lists = ([f"{res.rebuilds} SPH"] if res.physics.has_fluid else []) + (
         [f"{res.dem_rebuilds} DEM"] if res.physics.has_solid else [])
     print(f"{scene.name}: {res.n_steps} steps of {float(res.params.dt):.4g} s{sub}, "
-          f"{scene.n_particles} particles{left}, wall {res.wall_s:.1f} s "
-          f"(compile+first chunk {res.compile_s:.1f} s), {speed}, "
+          f"{scene.n_particles} particles{left}, set-up and compilation {res.setup_s:.1f} s, "
+          f"stepping {res.wall_s:.1f} s (first chunk {res.compile_s:.1f} s), {speed}, "
           f"{' and '.join(lists)} neighbour-list rebuilds")
     if out:
         extra = f" and {os.path.splitext(out)[0]}_probes.csv" if probes else ""
