@@ -147,13 +147,17 @@ def pressure(name: str, scene, point, kernel="wendland") -> Probe:
 
 def water_level(name: str, scene, x: float, floor: float = 0.0) -> Probe:
     """Height of the free surface at ``x``: the highest fluid particle whose centre lies
-    within Δp/2 of x (Δp the initial spacing), plus Δp/2; ``floor`` when none does."""
+    within Δp of x (Δp the initial spacing), plus Δp/2; ``floor`` when none does. The
+    window is two spacings wide so that a column of particles always lies in it: one
+    spacing wide, a probe between two columns read still water one spacing low whenever
+    both top particles jittered out of it. At a surface of slope s it reads up to s·Δp
+    high."""
     _need(scene, "fluid", name)
     half = 0.5 * float(scene.params.sph.dp)
 
     def fn(s):
         xf = s.fluid.x
-        near = (jnp.abs(xf[:, 0] - x) <= half) & observers.in_computation(s.fluid)
+        near = (jnp.abs(xf[:, 0] - x) <= 2 * half) & observers.in_computation(s.fluid)
         top = jnp.max(jnp.where(near, xf[:, 1] + half, floor))
         return jnp.maximum(top, floor)
 

@@ -86,6 +86,19 @@ def test_water_level_front_and_dry_floor():
     assert float(P.front("f", sc, "-x")(s)[0]) == pytest.approx(0.0)
 
 
+def test_water_level_between_two_columns_keeps_still_water_level_as_they_jitter():
+    """Columns at 0.045 and 0.055, the probe between them at 0.05: particles drifting a
+    little sideways (as still water's do) leave the level at the top row's 0.05."""
+    sc = scene(solid=False)
+    x = np.asarray(sc.fluid.x, float).copy()
+    level = P.water_level("h", sc, 0.05)
+    for shift in (-0.002, 0.0, 0.002):
+        x2 = x.copy()
+        x2[:, 0] += np.where(x2[:, 0] < 0.05, -abs(shift), abs(shift))   # columns part
+        s = NS(fluid=NS(x=jnp.asarray(x2)))
+        assert float(level(s)[0]) == pytest.approx(0.05)
+
+
 def test_bed_profile_takes_the_top_of_the_grains_in_each_column():
     sc = scene(fluid=False)
     p = P.bed_profile("bed", sc, [0, 1, 2, 3], 0.195, 0.425, 2)   # columns split at 0.31
