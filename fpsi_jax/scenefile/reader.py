@@ -89,8 +89,9 @@ def quantity(key, text: str) -> float:
     si, f = QUANTITY_UNITS.get(unit, (None, None))
     if si != key.unit:
         allowed = [u for u, (s, _) in QUANTITY_UNITS.items() if s == key.unit]
-        raise ValueError(f"= {text!r}: unit {unit or 'missing'!r} does not measure "
-                         f"{key.unit or 'a pure number'}; allowed units: "
+        what = ("is missing" if not unit else f"is not a unit of {key.unit}" if key.unit
+                else "is given to a pure number")
+        raise ValueError(f"= {text!r}: unit {unit!r} {what}; allowed units: "
                          f"{', '.join(allowed) or 'none (write a plain number)'}")
     return value * f
 
