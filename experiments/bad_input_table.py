@@ -108,6 +108,59 @@ width = 0.8
 height = 0.6
 """,
     "not_toml.toml": "[scene\nt_end = 1\n",
+    "not_a_csv.csv": b"\x89HDF\r\n\x1a\n\x00\xff",      # an HDF5 file's first bytes
+    "reference_not_csv.toml": """
+[scene]
+t_end = 0.01
+gravity = [0.0, 0.0]
+domain = [0.0, 0.0, 0.1, 0.1]
+[[discs]]
+name = "pair"
+points = [[0.04, 0.05], [0.06, 0.05]]
+radius = 0.005
+rho = 2700.0
+[contacts]
+kn = 1.0e5
+[[probe]]
+name = "left"
+kind = "displacement"
+body = "pair"
+point = [0.04, 0.05]
+reference = "not_a_csv.csv"
+""",
+    "probe_outside.toml": """
+[scene]
+t_end = 0.01
+[fluid]
+dx = 0.01
+[[fluid.region]]
+box = [0.0, 0.0, 0.2, 0.1]
+[tank]
+width = 0.4
+height = 0.2
+[[probe]]
+name = "p"
+kind = "pressure"
+point = [30.0, 5.0]
+""",
+    "discs_outside.toml": """
+[scene]
+t_end = 0.01
+[fluid]
+dx = 0.01
+[[fluid.region]]
+box = [0.0, 0.0, 0.2, 0.1]
+[tank]
+width = 0.4
+height = 0.2
+[[grains]]
+name = "bed"
+box = [0.5, 0.0, 0.6, 0.02]
+d = 0.005
+rho = 2650.0
+[contacts]
+kn = 1.0e5
+""",
 }
 
 #: a folder nobody may write in: chmod 555 stops a user, not root (then a sysfs folder)
@@ -176,6 +229,9 @@ ROWS = [
     ("scene file: dx = 1e-7", ["run", "{tmp}/huge_fluid.toml"]),
     ("scene file: probe of an unknown body", ["run", "{tmp}/bad_probe_body.toml"]),
     ("scene file: unknown probe kind", ["run", "{tmp}/bad_probe_kind.toml"]),
+    ("scene file: reference curve not a CSV", ["run", "{tmp}/reference_not_csv.toml", "--plot"]),
+    ("scene file: probe point outside the domain", ["run", "{tmp}/probe_outside.toml"]),
+    ("scene file: grains beside the tank", ["run", "{tmp}/discs_outside.toml"]),
     ("scene file: --set unknown key", ["run", COLLISION, "--set", "foo=1"]),
     ("scene file: --set x64=maybe", ["run", COLLISION, "--set", "x64=maybe"]),
     ("validate unknown case", ["validate", "nope"]),
@@ -192,6 +248,8 @@ ROWS = [
     ("calibrate --probe nope", ["calibrate", CAL, "--probe", "nope", "--out", "{tmp}/cal"]),
     ("calibrate --fit nope", ["calibrate", CAL, "--fit", "nope", "--out", "{tmp}/cal"]),
     ("calibrate --window 1,0", ["calibrate", CAL, "--window", "1,0", "--out", "{tmp}/cal"]),
+    ("calibrate --data not a CSV", ["calibrate", CAL, "--data", "{tmp}/not_a_csv.csv",
+                                    "--out", "{tmp}/cal"]),
     ("calibrate --start E=nan", ["calibrate", CAL, "--start", "E=nan", "--out", "{tmp}/cal"]),
     ("calibrate --out unwritable", ["calibrate", CAL, "--out", READ_ONLY + "/cal"]),
     ("calibrate --out a file", ["calibrate", CAL, "--out", "{tmp}/afile"]),
@@ -208,7 +266,7 @@ def scratch() -> str:
     its own."""
     tmp = tempfile.mkdtemp(prefix="fpsi_bad_input_")
     for name, text in FILES.items():
-        with open(os.path.join(tmp, name), "w") as fh:
+        with open(os.path.join(tmp, name), "wb" if isinstance(text, bytes) else "w") as fh:
             fh.write(text)
     os.makedirs(os.path.join(tmp, "ro"))
     os.chmod(os.path.join(tmp, "ro"), 0o555)

@@ -155,8 +155,16 @@ def cmd_validate(args):
     return 0 if all(r.passed for r in recs) else 1
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with bad arguments reported on one line (exit code 2), as every other bad
+    input is, instead of the usage block followed by the error."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def make_parser():
-    p = argparse.ArgumentParser(prog="fpsi", description=__doc__.splitlines()[0])
+    p = _Parser(prog="fpsi", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True)
     sub.add_parser("list", help="list scenes and validation cases")
     r = sub.add_parser("run", help="run a scene", epilog=(
