@@ -161,7 +161,7 @@ def check_dt(scene: Scene, dt: float, params: Params | None = None, substeps: in
     if not dt > 0:
         raise ParameterError(f"dt = {dt} out of range; allowed (0, {bound:.4g}] s")
     if dt > bound * (1 + 1e-9):
-        sub = f" with dem_substeps = {substeps}" if substeps > 1 else ""
+        sub = f" with dem_substeps = {substeps}" if substeps > 1 and not auto_substeps else ""
         raise ParameterError(
             f"dt = {dt:.4g} s exceeds the stability bound {bound:.4g} s{sub} "
             f"(SPH: {SPH_CFL:g} h/(c0+|v|max), {FSI_SPH_CFL:g} with a structure the fluid "
