@@ -179,6 +179,21 @@ def convert(key, v):
     raise AssertionError(t)
 
 
+#: the probe kinds each optional [[probe]] key applies to (a key given to another kind
+#: would be silently ignored: refused instead)
+PROBE_KEY_KINDS = {
+    "body": ("displacement", "force", "bed_profile", "broken_bonds"),
+    "region": ("displacement", "force", "bed_profile", "broken_bonds"),
+    "point": ("pressure", "displacement"),
+    "about": ("force",),
+    "x": ("water_level",),
+    "direction": ("front",),
+    "x_range": ("bed_profile",),
+    "bins": ("bed_profile",),
+    "floor": ("water_level", "bed_profile"),
+}
+
+
 def _check_table(path, tname, raw, index=None):
     array, keys, _ = TABLES[tname]
     if not isinstance(raw, dict):
@@ -202,6 +217,12 @@ def _check_table(path, tname, raw, index=None):
                 fail(path, tname, f"key {k.name!r} is required ({k.doc}"
                      f"{', ' + k.unit if k.unit else ''})", raw, index)
             out[k.name] = k.default
+    if tname == "probe":
+        for k in raw:
+            kinds = PROBE_KEY_KINDS.get(k)
+            if kinds and out["kind"] not in kinds:
+                fail(path, tname, f"key {k!r} does not apply to kind {out['kind']!r} (it is "
+                     f"for {', '.join(kinds)})", raw, index)
     return out
 
 

@@ -344,8 +344,9 @@ built or compiled, with one line naming the file, the table and the key, and exi
     error: flume.toml: [[structure]] 'gate': key 'E' = -1.0 is out of range; allowed (0.0, inf) Pa
 
 So are water, discs or an obstacle beside the tank's side walls or under its floor, a
-probe's point or x outside the domain, and a probe's `reference` curve that is not a CSV
-or has no column measuring that probe.
+probe's point or x outside the domain, a probe key its kind does not use (`body` on a
+pressure probe), and a probe's `reference` curve that is not a CSV or has no column
+measuring that probe.
 
 Shipped files: `examples/<scene>.toml` for every registered scene (each builds exactly the
 initial state of `fpsi run <scene>`), and examples of cases of your own

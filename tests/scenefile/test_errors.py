@@ -100,6 +100,9 @@ rho = 1100.0
      ["[[structure]] 'gate'", "a disc centre at", "lies outside the tank [0, 0.4]"]),
     ("obstacle outside the tank", lambda t: t + '\n[[obstacle]]\nbox = [0.5, 0.0, 0.6, 0.05]\n',
      ["[[obstacle]] #1", "lies wholly outside the tank"]),
+    ("probe key of another kind", lambda t: t + '\n[[probe]]\nname = "p"\nkind = "pressure"\n'
+     'point = [0.05, 0.02]\nbody = "gate"\n',
+     ["[[probe]] 'p'", "key 'body' does not apply to kind 'pressure'"]),
     ("probe reference missing", lambda t: edit(t, 'kind = "displacement"',
                                                'kind = "displacement"\nreference = "no.csv"'),
      ["[[probe]] 'tip'", "key 'reference'", "no such file"]),
