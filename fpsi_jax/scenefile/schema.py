@@ -303,7 +303,8 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
           "nearest to it"),
       Key("about", "point", "m", None, "force: moment reference point (default: the "
           "discs' start centroid)"),
-      Key("x", "float", "m", None, "water_level: where (the highest particle within one spacing of x)"),
+      Key("x", "float", "m", None, "water_level: where (the highest particle within one "
+          "spacing of x)"),
       Key("direction", "str", "", "+x", "front: which way", choices=("+x", "-x")),
       Key("x_range", "range", "m", None, "bed_profile: from x0 to x1"),
       Key("bins", "int", "", 10, "bed_profile: columns", lo=1),
