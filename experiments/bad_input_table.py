@@ -29,9 +29,8 @@ RESULTS = os.path.join(ROOT, "experiments", "results")
 CAL = os.path.join(ROOT, "examples", "calibrate", "cantilever_synthetic.toml")
 COLLISION = os.path.join(ROOT, "examples", "collision.toml")
 
-# scene files written into the scratch folder before the rows run: name -> text
-FILES = {
-    "bad_probe_body.toml": """
+# two discs, and a tank of water: the scenes the bad scene files below add to
+PAIR = """
 [scene]
 t_end = 0.01
 gravity = [0.0, 0.0]
@@ -43,7 +42,22 @@ radius = 0.005
 rho = 2700.0
 [contacts]
 kn = 1.0e5
-[[probe]]
+"""
+TANK = """
+[scene]
+t_end = 0.01
+[fluid]
+dx = 0.01
+[[fluid.region]]
+box = [0.0, 0.0, 0.2, 0.1]
+[tank]
+width = 0.4
+height = 0.2
+"""
+
+# scene files written into the scratch folder before the rows run: name -> text
+FILES = {
+    "bad_probe_body.toml": PAIR + """[[probe]]
 name = "left"
 kind = "displacement"
 body = "nope"
@@ -109,51 +123,19 @@ height = 0.6
 """,
     "not_toml.toml": "[scene\nt_end = 1\n",
     "not_a_csv.csv": b"\x89HDF\r\n\x1a\n\x00\xff",      # an HDF5 file's first bytes
-    "reference_not_csv.toml": """
-[scene]
-t_end = 0.01
-gravity = [0.0, 0.0]
-domain = [0.0, 0.0, 0.1, 0.1]
-[[discs]]
-name = "pair"
-points = [[0.04, 0.05], [0.06, 0.05]]
-radius = 0.005
-rho = 2700.0
-[contacts]
-kn = 1.0e5
-[[probe]]
+    "reference_not_csv.toml": PAIR + """[[probe]]
 name = "left"
 kind = "displacement"
 body = "pair"
 point = [0.04, 0.05]
 reference = "not_a_csv.csv"
 """,
-    "probe_outside.toml": """
-[scene]
-t_end = 0.01
-[fluid]
-dx = 0.01
-[[fluid.region]]
-box = [0.0, 0.0, 0.2, 0.1]
-[tank]
-width = 0.4
-height = 0.2
-[[probe]]
+    "probe_outside.toml": TANK + """[[probe]]
 name = "p"
 kind = "pressure"
 point = [30.0, 5.0]
 """,
-    "discs_outside.toml": """
-[scene]
-t_end = 0.01
-[fluid]
-dx = 0.01
-[[fluid.region]]
-box = [0.0, 0.0, 0.2, 0.1]
-[tank]
-width = 0.4
-height = 0.2
-[[grains]]
+    "discs_outside.toml": TANK + """[[grains]]
 name = "bed"
 box = [0.5, 0.0, 0.6, 0.02]
 d = 0.005
