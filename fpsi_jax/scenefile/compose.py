@@ -437,6 +437,8 @@ def compose(spec: dict, path: str) -> SceneFile:
     if has_discs:
         cont = cont or _defaults("contacts")
         kn = cont["kn"] if cont["kn"] is not None else (mat[0]["kn"] if mat else None)
+        if kn is None and np.all(solid.fixed):
+            kn = DemParams().kn     # fixed and kinematic discs only: no contact force is read
         if kn is None:
             fail(path, "contacts", "key 'kn' is required: the scene has discs and no "
                  "structure material to derive it from (N/m per unit thickness)")

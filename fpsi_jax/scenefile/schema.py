@@ -199,7 +199,9 @@ table("kinematic", True, "Discs moving at a prescribed constant velocity whateve
       Key("coupled", "bool", "", True, "takes part in the fluid sums (physics.coupling)"))
 
 table("contacts", False, "DEM contact law (W10–W17, K25). kn and ks default to the bonded "
-      "structures' material; without a structure kn is required.",
+      "structures' material; without a structure kn is required, unless every disc is "
+      "clamped or kinematic (a rigid pier as a [[kinematic]] body at rest: no contact "
+      "force is read, and the step takes no DEM sub-steps).",
       _pos("kn", "N/m", None, "normal contact stiffness per unit thickness"),
       Key("ks", "float", "N/m", None, "shear contact stiffness (default ½ kn, or the "
           "material's)", lo=0.0),

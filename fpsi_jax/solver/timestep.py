@@ -102,6 +102,8 @@ def dem_dt(scene: Scene, params: Params, phys: Physics | None = None) -> float:
     section = _physics(scene, phys).bond_section
     free = ~np.asarray(so.fixed, bool)
     if not free.any():
+        if scene.fluid is not None:     # fixed and kinematic discs only: no DEM force is
+            return math.inf             # ever integrated, the SPH step alone bounds Δt
         free = np.ones(so.n, bool)
     m = float(np.min(so.mass[free]))
     J = float(np.min(so.inertia[free]))

@@ -190,3 +190,44 @@ def test_docs_scene_file_md_lists_every_key_as_the_schema_does():
     assert doc.strip() == markdown().strip(), (
         "docs/scene-file.md is out of date: python -c \"from fpsi_jax.scenefile.schema "
         "import markdown; print(markdown())\" > docs/scene-file.md")
+
+
+def test_kinematic_bodies_alone_need_no_contact_stiffness_and_no_sub_steps(tmp_path):
+    """A rigid pier as a [[kinematic]] body at rest, the only discs: no DEM force is ever
+    integrated, so the file needs no [contacts] kn and the step takes one DEM sub-step
+    (the SPH bound alone), with the pier's force probe recorded."""
+    from fpsi_jax.run.driver import setup
+    from fpsi_jax.solver import timestep
+    path = tmp_path / "pier.toml"
+    path.write_text(edit(GOOD, """[[structure]]
+name = "gate"
+box = [0.2, 0.0, 0.21, 0.08]
+d = 0.005
+E = 1.0e6
+nu = 0.3
+rho = 1100.0
+clamp = [0.2, 0.07, 0.21, 0.08]
+
+[[probe]]
+name = "tip"
+kind = "displacement"
+body = "gate"
+region = [0.2, 0.0, 0.21, 0.005]
+""", """[[kinematic]]
+name = "pier"
+box = [0.2, 0.0, 0.22, 0.08]
+d = 0.01
+rho = 2400.0
+velocity = [0.0, 0.0]
+
+[[probe]]
+name = "F"
+kind = "force"
+body = "pier"
+"""))
+    sf = scenefile.load(str(path))
+    assert timestep.dem_dt(sf.scene, sf.scene.params) == float("inf")
+    phys, params = setup(sf.scene)
+    assert phys.dem_substeps == 1
+    assert float(params.dt) == pytest.approx(timestep.sph_dt(sf.scene, sf.scene.params,
+                                                             phys=phys))
