@@ -69,6 +69,11 @@ def apply(scene, overrides: dict, what: str, also: str = "") -> dict:
         if k in Physics.OPTIONS:
             phys_opts[k] = v
             continue
+        if k in ("dp", "sph.dp") and params.sph is not None:
+            raise ParameterError(
+                f"{k} is the fluid spacing the scene was built with ({float(params.sph.dp):g} m; "
+                "the particles' masses and lattice follow it): set the scene's dx instead "
+                "(--set dx=… for a registered scene, [fluid] dx in a scene file)")
         try:
             params = params.set(k, v)
         except ParameterError as e:

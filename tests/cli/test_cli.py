@@ -13,6 +13,7 @@ from fpsi_jax.run import io
     (["run", "dam_break", "--set", "dx=-1"], "dx = -1 is out of range; allowed (0, inf)"),
     (["run", "dam_break", "--set", "eps_xsph=2"], "eps_xsph = 2 is out of range"),
     (["run", "dam_break", "--set", "kernel=gauss"], "kernel = 'gauss' is not a choice"),
+    (["run", "dam_break", "--set", "sph.dp=0.02"], "set the scene's dx instead"),
     (["run", "dam_break", "--dt", "1"], "exceeds the stability bound"),
     (["run", "dam_break", "--t-end", "-1"], "t-end"),
     (["run", "dam_break", "--unsafe-dt"], "--unsafe-dt needs --dt"),
