@@ -183,6 +183,20 @@ def check_options(opts: dict) -> dict:
     return out
 
 
+def wall_force_rows(rows, scene) -> tuple:
+    """The ``wall_force`` option checked against the scene: () or (a, b) with
+    0 ≤ a < b ≤ the boundary particle count."""
+    if rows is None or len(rows) == 0:
+        return ()
+    n_b = scene.boundary.n if scene.boundary is not None else 0
+    ok = (len(rows) == 2 and all(isinstance(r, (int, np.integer)) for r in rows)
+          and 0 <= rows[0] < rows[1] <= n_b)
+    if not ok:
+        raise ParameterError(f"wall_force = {fmt(rows)}; allowed: two boundary row indices "
+                             f"(a, b) with 0 <= a < b <= {n_b}")
+    return (int(rows[0]), int(rows[1]))
+
+
 def moving_discs(solid) -> tuple:
     """The discs free at the start, when a quarter or more of them are fixed (else (): all
     rows; Physics.moving_discs). Below that the saving is a few rows against one more
@@ -222,6 +236,9 @@ class Physics:
       boundary_pressure    'fixed' (W5/K5: ρ, P of boundary particles never change) or
                            'extrapolated' (Adami et al. 2012: P_b from the fluid, with the
                            hydrostatic correction)
+      wall_force           boundary rows (a, b): the step records the fluid's force on
+                           boundary particles a … b − 1 (BoundaryState.force; a force probe
+                           on an obstacle sets it); () records none, the default
       h_margin             the neighbour cut-off allows h to grow to h_margin·h0
       rho_tolerance        |ρ/ρ0 − 1| above this marks a run unstable
       x64                  float64 everywhere
@@ -351,6 +368,7 @@ class Physics:
     pair_block: int = 0
     sort_fluid: bool = False
     shifting: float = 0.0
+    wall_force: tuple = ()
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
                "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
@@ -359,7 +377,7 @@ class Physics:
                "fpi_pressure", "eps_floor", "drag", "pair_block", "rebuild_block",
                "density_diffusion",
                "wall_images", "shifting", "sort_fluid", "transport_continuity", "added_mass",
-               "dem_list_substeps", "structure_acceleration")
+               "dem_list_substeps", "structure_acceleration", "wall_force")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,
@@ -383,6 +401,8 @@ class Physics:
             raise ParameterError(f"unknown Physics option(s) {sorted(unknown)}; "
                                  f"allowed: {', '.join(cls.OPTIONS)}")
         opts = check_options(opts)
+        if "wall_force" in opts:
+            opts["wall_force"] = wall_force_rows(opts["wall_force"], scene)
         # 0.4 h: with the fluid-only step (3.5× physics.md's) a 0.25 h skin was rebuilt every
         # ~5 steps of the 24k dam break and overflowed to K = 48; 0.4 h measured fastest
         # (0.25 / 0.3 / 0.35 / 0.4 / 0.45 / 0.6 h: 0.51 / 0.94 / 0.96 / 0.98 / 0.81 / 0.83 M

@@ -29,13 +29,17 @@ class FluidState:
 @pytree_dataclass
 class BoundaryState:
     """Fixed SPH boundary particles (≥ 2 layers). ``p``/``rho`` are constant in the 'fixed'
-    mode (W5, K5 method 1) and re-extrapolated every step in the 'extrapolated' mode."""
+    mode (W5, K5 method 1) and re-extrapolated every step in the 'extrapolated' mode.
+    ``force`` (n_b, 2), only with Physics.wall_force = (a, b) (else None): the fluid's force
+    on boundary particles a … b − 1 at the last SPH evaluation, F_B = −Σ_F m_F a_{F←B}
+    (fsi.reaction), zero on the other rows."""
 
     x: Any
     rho: Any
     p: Any
     h: Any
     mass: Any
+    force: Any = None
 
 
 @pytree_dataclass

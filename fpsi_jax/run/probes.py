@@ -19,8 +19,9 @@ Kinds (the scene file's ``[[probe]] kind``):
 kind            what                                                      components
 ==============  ========================================================  ==============
 displacement    mean displacement of a set of discs from its start        ux, uy [m]
-force           the fluid's force on a set of structure discs and its     Fx, Fy [N/m],
-                moment about a point (Σ (x_i − c) × F_i)                  M [N m/m]
+force           the fluid's force on a set of structure discs, or on an   Fx, Fy [N/m],
+                obstacle's boundary particles, and its moment about a     M [N m/m]
+                point (Σ (x_i − c) × F_i)
 pressure        fluid pressure at a point: Shepard interpolation          p [Pa]
                 Σ P_j W_j V_j / Σ W_j V_j, V_j = m_j/ρ_j (0 when dry)
 water_level     free-surface height at x: the highest fluid particle      level [m]
@@ -122,6 +123,43 @@ def force(name: str, scene, idx, about=None) -> Probe:
 
     return Probe(name, "force", fn, ("Fx", "Fy", "M"), ("N/m", "N/m", "N m/m"),
                  {"discs": int(rows.size), "about": c.tolist()})
+
+
+def obstacle_force(name: str, scene, rows, about=None) -> Probe:
+    """The fluid's force on the boundary particles ``rows`` = (a, b), a … b − 1 of
+    ``scene.boundary`` (a fixed obstacle: the scene file's ``[[obstacle]]`` blocks follow the
+    tank's walls), and its moment about ``about`` (default: their centroid), anticlockwise
+    positive. Each fluid–boundary pair's momentum term counts once, F_B = −Σ_F m_F a_{F←B},
+    as for a structure (what DualSPHysics' ComputeForces sums on boundary particles). It is
+    the water's force: grains pressing on the obstacle do so through its DEM walls, which
+    it does not include. The run computes it only for the rows a probe asks for
+    (``spec['boundary_rows']``, which :func:`~fpsi_jax.run.driver.simulate` passes on as
+    ``Physics.wall_force``)."""
+    _need(scene, "boundary", name)
+    a, b = (int(r) for r in rows)
+    if not 0 <= a < b <= scene.boundary.n:
+        raise ParameterError(f"probe {name!r}: boundary rows ({a}, {b}) out of range; "
+                             f"allowed 0 <= a < b <= {scene.boundary.n}")
+    xb = np.asarray(scene.boundary.x, float)[a:b]
+    c = xb.mean(axis=0) if about is None else np.asarray(about, float)
+
+    def fn(s):
+        f = s.boundary.force[a:b]
+        x = jnp.asarray(xb - c, f.dtype)
+        m = jnp.sum(x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0])
+        return jnp.concatenate([jnp.sum(f, axis=0), m[None]])
+
+    return Probe(name, "force", fn, ("Fx", "Fy", "M"), ("N/m", "N/m", "N m/m"),
+                 {"boundary_rows": [a, b], "about": c.tolist()})
+
+
+def wall_force_rows(probes) -> tuple:
+    """The boundary rows (a, b) that cover every obstacle force probe of ``probes``
+    (Physics.wall_force), or () when none asks for any."""
+    spans = [p.spec["boundary_rows"] for p in probes or () if "boundary_rows" in p.spec]
+    if not spans:
+        return ()
+    return (min(a for a, _ in spans), max(b for _, b in spans))
 
 
 def pressure(name: str, scene, point, kernel="wendland") -> Probe:

@@ -394,9 +394,14 @@ def compose(spec: dict, path: str) -> SceneFile:
             wall_a.append(w.a)
             wall_b.append(w.b)
             wall_side.append(w.sides())         # the tank's walls act on the inside
+    obstacles = {}                               # name -> its boundary rows (a, b)
     for i, ob in enumerate(spec.get("obstacle", [])):
         how = _shape(path, "obstacle", ob, i, ("box", "polygon", "polyline"))
+        if ob["name"] is not None and (ob["name"] in names or ob["name"] in obstacles):
+            fail(path, "obstacle", f"name {ob['name']!r} is used by another body or "
+                 "obstacle", ob, i)
         if fluid is not None:
+            first_row = sum(len(x) for x in xb_parts)
             dxo = ob["dx"] or (tank["dx_boundary"] if tank and tank["dx_boundary"] else sp.dp)
             hb = hb or h
             if how == "polyline":
@@ -410,6 +415,8 @@ def compose(spec: dict, path: str) -> SceneFile:
             dx_parts.append(dxo)
             if tank is not None and not np.any(_in_tank(tank, xb_parts[-1])):
                 fail(path, "obstacle", f"lies wholly outside the tank {_tank_span(tank)}", ob, i)
+            if ob["name"] is not None:
+                obstacles[ob["name"]] = (first_row, first_row + len(xb_parts[-1]))
         dem = has_discs if ob["dem_walls"] is None else ob["dem_walls"]
         if dem:
             a, b = _outline(ob)
@@ -525,7 +532,10 @@ def compose(spec: dict, path: str) -> SceneFile:
         scene.validate()
     except Exception as e:
         fail(path, "scene", str(e))
-    probes, refs = _probes(path, spec, scene, bodies)
+    probes, refs = _probes(path, spec, scene, bodies, obstacles)
+    rows = P.wall_force_rows(probes)
+    if rows:                     # the step records the fluid's force on these rows
+        scene.options["wall_force"] = rows
     out = dict(spec.get("output") or _defaults("output"))
     folder = os.path.dirname(os.path.abspath(path))
     if out["file"] is not None:
@@ -606,8 +616,9 @@ def _probe_inside_domain(path, pr, i, scene):
                  pr, i)
 
 
-def _probes(path, spec, scene, bodies):
+def _probes(path, spec, scene, bodies, obstacles=None):
     probes, refs = [], {}
+    obstacles = obstacles or {}
     folder = os.path.dirname(os.path.abspath(path))
     seen = set()
     for i, pr in enumerate(spec.get("probe", [])):
@@ -616,10 +627,22 @@ def _probes(path, spec, scene, bodies):
             fail(path, "probe", f"name {name!r} is used twice", pr, i)
         seen.add(name)
         idx = None
+        if pr["body"] is not None and pr["body"] in obstacles:
+            if kind != "force":
+                fail(path, "probe", f"key 'body' = {pr['body']!r} names an obstacle: only "
+                     f"kind 'force' reads one (kind {kind!r} reads discs)", pr, i)
+            if pr["region"] is not None:
+                fail(path, "probe", "key 'region' selects discs; a force probe on an "
+                     "obstacle sums all its particles", pr, i)
+            _probe_inside_domain(path, pr, i, scene)
+            probes.append(P.obstacle_force(name, scene, obstacles[pr["body"]], pr["about"]))
+            _reference(path, folder, pr, i, probes[-1], refs)
+            continue
         if pr["body"] is not None:
             if pr["body"] not in bodies:
+                known = list(bodies) + [f"{o} (obstacle)" for o in obstacles]
                 fail(path, "probe", f"key 'body' = {pr['body']!r} names no body; bodies: "
-                     f"{', '.join(bodies) or 'none'}", pr, i)
+                     f"{', '.join(known) or 'none'}", pr, i)
             idx = bodies[pr["body"]]
             if pr["region"] is not None:
                 sel = _region_mask(scene.solid.x[idx], pr["region"])
@@ -666,15 +689,20 @@ def _probes(path, spec, scene, bodies):
             msg = str(e).replace(f"probe {name!r}: ", "")
             fail(path, "probe", msg, pr, i)
         probes.append(p)
-        if pr["reference"] is not None:
-            ref = os.path.join(folder, pr["reference"])
-            if not os.path.exists(ref):
-                fail(path, "probe", f"key 'reference' = {pr['reference']!r}: no such file",
-                     pr, i)
-            try:                     # read now, so that a bad curve stops before the run
-                data.match(ref, p)
-            except data.DataError as e:
-                fail(path, "probe", f"key 'reference': {e}", pr, i)
-            refs[name] = ref
+        _reference(path, folder, pr, i, p, refs)
     return probes, refs
+
+
+def _reference(path, folder, pr, i, p, refs):
+    """Read a probe's ``reference`` curve now, so that a bad curve stops before the run."""
+    if pr["reference"] is None:
+        return
+    ref = os.path.join(folder, pr["reference"])
+    if not os.path.exists(ref):
+        fail(path, "probe", f"key 'reference' = {pr['reference']!r}: no such file", pr, i)
+    try:
+        data.match(ref, p)
+    except data.DataError as e:
+        fail(path, "probe", f"key 'reference': {e}", pr, i)
+    refs[p.name] = ref
 

@@ -124,7 +124,7 @@ table("tank", False, "An open-top tank [0, width] × [0, height] of fixed SPH bo
 table("obstacle", True, "A fixed body: SPH boundary particles filling it (on the tank's "
       "dx_boundary lattice) and DEM walls along its outline. Give `box`, `polygon` or "
       "`polyline`.",
-      Key("name", "str", "", None, "label"),
+      Key("name", "str", "", None, "label; a force probe's `body` can name it"),
       Key("box", "box", "m", None, "rectangle [x0, y0, x1, y1], filled"),
       Key("polygon", "polygon", "m", None, "polygon, filled"),
       Key("polyline", "polyline", "m", None, "an open line, `layers` particle rows thick on "
@@ -298,13 +298,14 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
           "displacement", "force", "pressure", "water_level", "front", "bed_profile",
           "broken_bonds")),
       Key("body", "str", "", None, "name of a structure, grains, discs or kinematic group "
-          "(displacement, force, bed_profile, broken_bonds)"),
+          "(displacement, force, bed_profile, broken_bonds), or of an obstacle (force: "
+          "the fluid's force on its boundary particles)"),
       Key("region", "region", "m", None, "only the body's discs in this region "
           "(displacement: e.g. the tip)"),
       Key("point", "point", "m", None, "pressure: where; displacement: the body's disc "
           "nearest to it"),
       Key("about", "point", "m", None, "force: moment reference point (default: the "
-          "discs' start centroid)"),
+          "discs' start centroid, or the obstacle's particles' centroid)"),
       Key("x", "float", "m", None, "water_level: where (the highest particle within one "
           "spacing of x)"),
       Key("direction", "str", "", "+x", "front: which way", choices=("+x", "-x")),

@@ -58,7 +58,8 @@ def allocated_state(scene: Scene, phys: Physics) -> State:
         fl = scene.fluid
         b = scene.boundary
         boundary = None if b is None else BoundaryState(
-            x=a(b.x), rho=a(b.rho), p=a(b.p), h=a(b.h), mass=a(b.mass))
+            x=a(b.x), rho=a(b.rho), p=a(b.p), h=a(b.h), mass=a(b.mass),
+            force=a(np.zeros((b.n, 2))) if phys.wall_force else None)
         x = a(fl.x)
         fluid = FluidState(x=x, v=a(fl.v), rho=a(fl.rho), h=a(fl.h), mass=a(fl.mass),
                            acc=z(x), xsph=z(x),

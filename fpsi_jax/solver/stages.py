@@ -723,11 +723,14 @@ def fluid_momentum(phys: Physics, params: Params, state: State, fam: SphFamily, 
     out = pair_pass(phys, fam, rho_c_all, lambda pr: rate(pr, jnp.asarray(params.gravity)),
                     table)
     acc, xs = out[:2]
+    no_gravity = lambda pr: rate(pr, jnp.zeros_like(acc[0]))[0]
     if fs is not None:
         with jax.named_scope("fsi.reaction"):
-            fs = fs.replace(force=structure_reaction(
-                phys, fam, table, lambda pr: rate(pr, jnp.zeros_like(acc[0]))[0]))
-    state = state.replace(fluid=state.fluid.replace(acc=acc, xsph=xs), fsi=fs)
+            fs = fs.replace(force=structure_reaction(phys, fam, table, no_gravity))
+    if phys.wall_force:
+        with jax.named_scope("boundary.force"):
+            b = b.replace(force=wall_force(phys, fam, table, no_gravity))
+    state = state.replace(fluid=state.fluid.replace(acc=acc, xsph=xs), fsi=fs, boundary=b)
     return state, (out[3] if shared else None)
 
 
@@ -740,16 +743,31 @@ def structure_reaction(phys: Physics, fam: SphFamily, table, fluid_rate):
     pair law, without gravity). The momentum pass over the fluid rows then writes no
     per-pair array: keeping its (n_f, K, 2) pair accelerations for this sum cost the elastic
     gate a quarter of its step (docs/performance.md)."""
-    first, n_s = fam.first_s, phys.n_structure
-    idx_s = neighbors.wall_rows(phys.neighbors, fam.idx, first, n_s)
-    found = idx_s < phys.n_fluid
+    return _reaction_on_rows(phys, fam, table, fluid_rate, fam.first_s, phys.n_structure)
+
+
+def wall_force(phys: Physics, fam: SphFamily, table, fluid_rate):
+    """The fluid's force on the boundary particles a … b − 1 of ``phys.wall_force``, as
+    :func:`structure_reaction` computes it for the structure (each fluid–boundary pair's
+    momentum term as the fluid row computes it, pressure, viscosity and the wall backstop);
+    (n_b, 2), zero on the other boundary rows. What a force probe on an obstacle reads."""
+    a, b = phys.wall_force
+    f = _reaction_on_rows(phys, fam, table, fluid_rate, phys.n_fluid + a, b - a)
+    return jnp.zeros((phys.n_boundary, 2), f.dtype).at[a:b].set(f)
+
+
+def _reaction_on_rows(phys: Physics, fam: SphFamily, table, fluid_rate, first: int, n: int):
+    """−Σ_F m_F a_{F←W} for the wall rows ``first`` … ``first`` + n − 1 of the SPH family
+    (boundary or structure particles, whose rows list their fluid neighbours)."""
+    idx_w = neighbors.wall_rows(phys.neighbors, fam.idx, first, n)
+    found = idx_w < phys.n_fluid
     # an empty slot becomes fluid particle 0 with the padding particle far away as its
     # neighbour, as a padded slot of a fluid row is: every term of it is exactly zero
-    f = jnp.where(found, idx_s, 0).reshape(-1)
-    s = jnp.where(found, first + jnp.arange(n_s, dtype=idx_s.dtype)[:, None],
+    f = jnp.where(found, idx_w, 0).reshape(-1)
+    w = jnp.where(found, first + jnp.arange(n, dtype=idx_w.dtype)[:, None],
                   table.shape[0] - 1).reshape(-1, 1)
-    acc = fluid_rate(pairs_at(kernels.get(phys.kernel), phys.n_fluid, table, f, s))
-    return fsi.reaction(acc.reshape(idx_s.shape + (2,)), fam.m[f].reshape(idx_s.shape), found)
+    acc = fluid_rate(pairs_at(kernels.get(phys.kernel), phys.n_fluid, table, f, w))
+    return fsi.reaction(acc.reshape(idx_w.shape + (2,)), fam.m[f].reshape(idx_w.shape), found)
 
 
 def grain_forces(phys: Physics, params: Params, state: State, fam: SphFamily,

@@ -100,6 +100,15 @@ rho = 1100.0
      ["[[structure]] 'gate'", "a disc centre at", "lies outside the tank [0, 0.4]"]),
     ("obstacle outside the tank", lambda t: t + '\n[[obstacle]]\nbox = [0.5, 0.0, 0.6, 0.05]\n',
      ["[[obstacle]] #1", "lies wholly outside the tank"]),
+    ("obstacle read as discs", lambda t: t + '\n[[obstacle]]\nname = "pier"\n'
+     'box = [0.3, 0.0, 0.32, 0.05]\n' + '\n[[probe]]\nname = "u"\nkind = "displacement"\n'
+     'body = "pier"\n', ["[[probe]] 'u'", "names an obstacle: only kind 'force'"]),
+    ("obstacle force of a region", lambda t: t + '\n[[obstacle]]\nname = "pier"\n'
+     'box = [0.3, 0.0, 0.32, 0.05]\n' + '\n[[probe]]\nname = "f"\nkind = "force"\n'
+     'body = "pier"\nregion = [0.3, 0.0, 0.31, 0.05]\n',
+     ["[[probe]] 'f'", "key 'region' selects discs"]),
+    ("obstacle named as a body", lambda t: t + '\n[[obstacle]]\nname = "gate"\n'
+     'box = [0.3, 0.0, 0.32, 0.05]\n', ["[[obstacle]]", "name 'gate' is used by another"]),
     ("probe key of another kind", lambda t: t + '\n[[probe]]\nname = "p"\nkind = "pressure"\n'
      'point = [0.05, 0.02]\nbody = "gate"\n',
      ["[[probe]] 'p'", "key 'body' does not apply to kind 'pressure'"]),

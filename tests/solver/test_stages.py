@@ -841,3 +841,46 @@ def test_structure_pressure_sees_the_discs_acceleration_only_with_the_option():
     assert wet.sum() > 10
     np.testing.assert_allclose(on[wet], want[wet], rtol=1e-9)
     assert np.min(np.abs(off - on)[wet]) > 20.0     # the plate's ρ g·x term, 30–55 Pa
+
+
+# --- the fluid's force on fixed boundary particles (Physics.wall_force) --------------------
+def _tank():
+    """A coarse dam break: fluid and a boundary of two spacings."""
+    return cases.build("dam_break", column_width=0.06, column_height=0.06, tank_width=0.12,
+                       tank_height=0.1, dx=0.006, dx_boundary=0.003, t_end=0.01)
+
+
+def _moving_tank(**opts):
+    """:func:`_tank`'s fluid given random velocities so that every viscous term acts;
+    float64 (Physics, Params, State)."""
+    sc = _tank()
+    sc.fluid.v = np.random.default_rng(1).normal(0.0, 0.1, sc.fluid.x.shape)
+    return init_x64(sc, x64=True, **opts)
+
+
+@x64
+def test_wall_force_is_the_momentum_the_fluid_gives_the_walls():
+    """With the force recorded on every boundary particle, Σ_F m_F (a_F − g) + Σ_B F_B = 0:
+    each fluid–wall pair term counted once on each side (the fluid–fluid terms cancel
+    pair by pair), pressure, viscosity, artificial viscosity and the wall backstop alike."""
+    n_b = _tank().boundary.n
+    phys, p, st = _moving_tank(wall_force=(0, n_b))
+    g = np.asarray(p.gravity)
+    fluid = np.asarray(st.fluid.mass)[:, None] * (np.asarray(st.fluid.acc) - g)
+    walls = np.asarray(st.boundary.force)
+    assert np.abs(walls).sum(axis=0).min() > 1e-3 * np.abs(fluid).sum(axis=0).max()
+    np.testing.assert_allclose(fluid.sum(axis=0) + walls.sum(axis=0), 0.0,
+                               atol=1e-12 * np.abs(fluid).sum())
+
+
+@x64
+def test_wall_force_on_some_rows_equals_those_rows_of_all():
+    """wall_force = (a, b) records rows a … b − 1 as the whole-boundary record has them
+    and zero elsewhere; without the option the state holds no force."""
+    n_b = _tank().boundary.n
+    a, b = n_b // 3, n_b // 2
+    every = np.asarray(_moving_tank(wall_force=(0, n_b))[2].boundary.force)
+    some = np.asarray(_moving_tank(wall_force=(a, b))[2].boundary.force)
+    np.testing.assert_allclose(some[a:b], every[a:b], rtol=1e-12, atol=1e-15)
+    assert not some[:a].any() and not some[b:].any()
+    assert _moving_tank()[2].boundary.force is None
