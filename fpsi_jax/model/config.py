@@ -284,11 +284,13 @@ class Physics:
                            0 (none) unless a user raises it
       drag                 the grains' drag: 'sphere' (W19–W23, default) or 'cylinder'
                            (a disc as a cylinder per unit length); see fpi.py
-      fpi_pressure         the grains' buoyancy: 'archimedes' (ρ_f V_p |g|, default),
+      fpi_pressure         the grains' buoyancy: 'archimedes' (ρ_f V_p |g|; the default
+                           where no two grains touch at the start),
                            'gradient' (−V_p ∇P of the SPH pressure) or 'shared' (each fluid
                            cell's pressure force, ε to its fluid, 1 − ε to its grains, with
-                           the mixture's continuity: energy-conserving, for packed beds);
-                           see fpi.py
+                           the mixture's continuity: energy-conserving, stable in packed
+                           beds; the default where grains touch at the start); see fpi.py
+                           and docs/physics.md, *Which pressure coupling*
       lubrication          W24 between wet grains (cut-off and regularisation in Params.fpi)
       added_mass           the added-mass force on wet grains, C_a ρ_f V_p (Du/Dt − dv_p/dt)
                            with C_a = Params.fpi.added_mass, and its reaction on the fluid
@@ -437,6 +439,10 @@ class Physics:
             both = np.intersect1d(scene.solid.grain_indices(), scene.solid.structure_indices())
             if method is not None and both.size:
                 raise ParameterError(f"disc {int(both[0])} is both a grain and structure")
+            if "fpi_pressure" not in opts:   # each is unstable or inexact for the other case
+                opts["fpi_pressure"] = choose(
+                    FpiPressure, "fpi_pressure",
+                    "shared" if scene.solid.grains_in_contact() else "archimedes")
         lo = tuple(map(float, scene.domain_lo))
         hi = tuple(map(float, scene.domain_hi))
         box = tuple(float(h - l) for h, l in zip(hi, lo))

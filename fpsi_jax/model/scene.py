@@ -101,6 +101,22 @@ class SolidBlock:
         s = np.ones(self.n, bool) if self.structure is None else np.asarray(self.structure, bool)
         return np.nonzero(~s & ~np.asarray(self.fixed, bool))[0].astype(np.int32)
 
+    def grains_in_contact(self, tol=1e-6) -> bool:
+        """Whether any two grains touch or overlap, |x_i − x_j| ≤ (R_i + R_j)(1 + tol): a
+        bed (the grains compared in chunks of 512 against those within reach)."""
+        g = self.grain_indices()
+        x, r = np.asarray(self.x, float)[g], np.asarray(self.radius, float)[g]
+        reach = 2.0 * float(r.max()) if len(r) else 0.0
+        for k in range(0, len(x), 512):
+            b, rb = x[k:k + 512], r[k:k + 512]
+            near = np.flatnonzero(np.all((x >= b.min(0) - reach) & (x <= b.max(0) + reach),
+                                         axis=1))
+            d = np.linalg.norm(x[near][:, None, :] - b[None, :, :], axis=2)
+            other = near[:, None] != (k + np.arange(len(b)))[None, :]
+            if np.any(other & (d <= (r[near][:, None] + rb[None, :]) * (1 + tol))):
+                return True
+        return False
+
     def volumes(self) -> np.ndarray:
         if self.sph_volume is None:
             return (2.0 * np.asarray(self.radius, float)) ** 2

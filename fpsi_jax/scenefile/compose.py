@@ -497,8 +497,9 @@ def compose(spec: dict, path: str) -> SceneFile:
                 fail(path, "physics", "key 'fpi' = true: the scene has no grains")
             options.update(fpi=True, voidage=ph["voidage"], eps_floor=ph["eps_floor"],
                            drag=ph["drag"], wall_images=ph["wall_images"],
-                           lubrication=ph["lubrication"], fpi_pressure=ph["fpi_pressure"],
-                           added_mass=ph["added_mass"])
+                           lubrication=ph["lubrication"], added_mass=ph["added_mass"])
+            if ph["fpi_pressure"] is not None:     # else Physics chooses by the packing
+                options["fpi_pressure"] = ph["fpi_pressure"]
             fpi_tbl = spec.get("fpi") or _defaults("fpi")
             fpi = FpiParams(lub_gap_min=fpi_tbl["lub_gap_min"], lub_cutoff=fpi_tbl["lub_cutoff"],
                             added_mass=fpi_tbl["added_mass"])

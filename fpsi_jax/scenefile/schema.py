@@ -278,8 +278,11 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
       Key("lubrication", "bool", "", True, "lubrication between grains in fluid (W24)"),
       Key("added_mass", "bool", "", False, "the grains' added mass C_a ρ_f V_p (Du/Dt − "
           "dv/dt), C_a from [fpi] (off: the seeds have none)"),
-      Key("fpi_pressure", "str", "", "archimedes",
-          "pressure force on grains ('shared': energy-conserving, for packed beds)",
+      Key("fpi_pressure", "str", "", None,
+          "pressure force on grains: 'shared' (each fluid cell's pressure force shared by "
+          "fluid and grains; energy-conserving, stable in packed beds) or 'archimedes' "
+          "(ρ_f V_p g, exact for an isolated grain, unstable in a bed at its own voidage); "
+          "default: 'shared' when grains touch each other at the start, else 'archimedes'",
           choices=("archimedes", "gradient", "shared")),
       Key("rho_tolerance", "float", "", 0.3, "stop when |ρ/ρ0 − 1| exceeds this", lo=0.0,
           lo_open=True))

@@ -1,0 +1,61 @@
+"""What a scene file leaves to be derived: the grains' pressure coupling by whether they
+form a bed (Physics.for_scene), and an obstacle's boundary rows for a force probe."""
+import numpy as np
+import pytest
+
+from fpsi_jax import scenefile
+from fpsi_jax.model.config import Physics
+
+WATER = """
+[scene]
+t_end = 0.01
+[fluid]
+dx = 0.005
+[[fluid.region]]
+box = [0.0, 0.0, 0.3, 0.05]
+[tank]
+width = 0.3
+height = 0.1
+[contacts]
+kn = 1.0e5
+"""
+
+
+def compose(tmp_path, text):
+    path = tmp_path / "scene.toml"
+    path.write_text(text)
+    return scenefile.load(str(path))
+
+
+@pytest.mark.parametrize("grains, pressure", [
+    ('box = [0.1, 0.0, 0.2, 0.02]\nd = 0.004', "shared"),           # a packed bed
+    ('points = [[0.1, 0.03], [0.2, 0.03]]\nd = 0.004', "archimedes"),  # two apart
+    ('points = [[0.1, 0.03], [0.104, 0.03]]\nd = 0.004', "shared"),    # two touching
+])
+def test_grains_that_touch_share_the_pressure_and_isolated_ones_take_archimedes(
+        tmp_path, grains, pressure):
+    sf = compose(tmp_path, WATER + f'[[grains]]\nname = "g"\nrho = 2650.0\n{grains}\n')
+    assert "fpi_pressure" not in sf.scene.options
+    assert Physics.for_scene(sf.scene).fpi_pressure == pressure
+
+
+def test_a_given_pressure_coupling_wins_over_the_default(tmp_path):
+    sf = compose(tmp_path, WATER + '[[grains]]\nname = "g"\nrho = 2650.0\n'
+                 'box = [0.1, 0.0, 0.2, 0.02]\nd = 0.004\n[physics]\n'
+                 'fpi_pressure = "archimedes"\n')
+    assert Physics.for_scene(sf.scene).fpi_pressure == "archimedes"
+
+
+def test_a_force_probe_on_an_obstacle_reads_that_obstacles_particles(tmp_path):
+    """Two obstacles after the tank's walls: the probe's rows are the second one's
+    particles (all inside its box) and the step records the force on those rows only."""
+    sf = compose(tmp_path, WATER.replace("0.3, 0.05]", "0.1, 0.05]") +
+                 '[[obstacle]]\nname = "a"\nbox = [0.15, 0.0, 0.17, 0.03]\n'
+                 '[[obstacle]]\nname = "b"\nbox = [0.22, 0.0, 0.25, 0.04]\n'
+                 '[[probe]]\nname = "fb"\nkind = "force"\nbody = "b"\n')
+    a, b = sf.probes[0].spec["boundary_rows"]
+    x = np.asarray(sf.scene.boundary.x)
+    assert b == len(x)                                   # the last block of particles
+    inside = (x[:, 0] > 0.22) & (x[:, 0] < 0.25) & (x[:, 1] > 0.0) & (x[:, 1] < 0.04)
+    assert np.array_equal(np.flatnonzero(inside), np.arange(a, b))
+    assert sf.scene.options["wall_force"] == (a, b)
