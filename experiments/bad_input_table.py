@@ -135,6 +135,14 @@ name = "p"
 kind = "pressure"
 point = [30.0, 5.0]
 """,
+    "obstacle_displacement.toml": TANK + """[[obstacle]]
+name = "pier"
+box = [0.3, 0.0, 0.32, 0.05]
+[[probe]]
+name = "u"
+kind = "displacement"
+body = "pier"
+""",
     "discs_outside.toml": TANK + """[[grains]]
 name = "bed"
 box = [0.5, 0.0, 0.6, 0.02]
@@ -214,6 +222,7 @@ ROWS = [
     ("scene file: reference curve not a CSV", ["run", "{tmp}/reference_not_csv.toml", "--plot"]),
     ("scene file: probe point outside the domain", ["run", "{tmp}/probe_outside.toml"]),
     ("scene file: grains beside the tank", ["run", "{tmp}/discs_outside.toml"]),
+    ("scene file: displacement of an obstacle", ["run", "{tmp}/obstacle_displacement.toml"]),
     ("scene file: --set unknown key", ["run", COLLISION, "--set", "foo=1"]),
     ("scene file: --set x64=maybe", ["run", COLLISION, "--set", "x64=maybe"]),
     ("validate unknown case", ["validate", "nope"]),
