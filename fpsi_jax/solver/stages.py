@@ -696,8 +696,9 @@ def wall_pressure(phys: Physics, params: Params, state: State, fam: SphFamily,
 def fluid_momentum(phys: Physics, params: Params, state: State, fam: SphFamily, rho_c_all,
                    lvl: NewLevel):
     """The fluid's acceleration and XSPH correction (sph.momentum_rate: W43, K34–K39) at the
-    new level, and the reaction of the fluid–structure pairs on the structure
-    (:func:`structure_reaction`, fsi.py).
+    new level, the reaction of the fluid–structure pairs on the structure
+    (:func:`structure_reaction`, fsi.py) and, with Physics.wall_force, on those boundary
+    rows (:func:`wall_force`).
     Returns (state, the grains' part of the cells' pressure force per unit fluid mass with
     the 'shared' pressure, else None)."""
     fs, b, first = state.fsi, state.boundary, phys.n_fluid + phys.n_boundary
