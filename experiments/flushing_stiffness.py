@@ -1,6 +1,6 @@
 """The pore fluid's local acoustic stiffness over a sediment flush, with and without the
-grains' wall images (docs/physics.md, Packed beds: why the unfloored flush went unstable
-with the images).
+grains' wall images (docs/physics.md, Packed beds: what grows where the unfloored flush
+goes unstable with the images).
 
     fpsi run unfloored.toml --out flush.h5                  # stops with exit 3 at ~0.48 s
     fpsi run unfloored_noimg.toml --out flush_noimg.h5      # the same, wall_images = false
@@ -14,9 +14,9 @@ For every frame and fluid particle i it evaluates the volume-sum gradient
 in units of Σ_j V_j |∇_i W_ij| on the scene's clear-water lattice (Δx, h0). In the
 symmetric pressure force −(1/ρ_i) Σ_j V_j (P_i + P_j) ∇_iW_ij and its adjoint continuity
 (ρ_i Σ_j V_j u_i·∇_iW_ij) the particle's own pressure and its own velocity meet through
-this one vector, so a particle displaced by δx oscillates at ω = c0 |Σ_j V_j ∇_iW_ij|:
-zero in a uniform lattice (G ≈ 0.003 in the clear water), and as large as the neighbours'
-superficial volumes are uneven. Writes experiments/results/flushing_stiffness.{csv,png}:
+this one vector, so a particle displaced along it oscillates at ω ≥ c0 |Σ_j V_j ∇_iW_ij|
+(its neighbours' pressure responses add to it): zero in a uniform lattice (G ≈ 0.003 in
+the clear water), and as large as the neighbours' superficial volumes are uneven. Writes experiments/results/flushing_stiffness.{csv,png}:
 per frame the largest G, which particle, its ε0 (mass / ρ0Δx²) and ε.
 """
 from __future__ import annotations
