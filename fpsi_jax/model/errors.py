@@ -3,7 +3,7 @@
 ``ParameterError`` is bad user input, found before anything is compiled: its message names
 the key and the allowed range, and the CLI turns it into one line and exit code 2.
 ``SimulationError`` is a run that went unstable: it names the step, time, particle and
-quantity.
+quantity, and where the particle was in the last good frame (with its voidage among grains).
 """
 from __future__ import annotations
 
@@ -77,14 +77,23 @@ def check_positive(**kw):
 
 
 class SimulationError(RuntimeError):
-    """A run went unstable. Attributes: step, time, particle, phase, quantity, output."""
+    """A run went unstable. Attributes: step, time, particle, phase, quantity, output,
+    position (the particle's (x, y) in the last good frame, or None) and voidage (a fluid
+    particle's ε there among grains, else None)."""
 
-    def __init__(self, step, t, particle, quantity, phase="fluid", output=None, t_good=None):
+    def __init__(self, step, t, particle, quantity, phase="fluid", output=None, t_good=None,
+                 position=None, voidage=None):
         self.step, self.time, self.particle = step, t, particle
         self.phase, self.quantity, self.output = phase, quantity, output
+        self.position, self.voidage = position, voidage
+        at = ""
+        if position is not None:
+            eps = f", voidage {voidage:.3g}" if voidage is not None else ""
+            at = (f" (at x = {position[0]:.4g}, y = {position[1]:.4g} m in the last good "
+                  f"frame{eps})")
         where = f"; frames up to t = {t_good:.6g} s are in {output}" if output else ""
         super().__init__(f"run unstable at step {step} (t = {t:.6g} s): {phase} particle "
-                         f"{particle}: {quantity}{where}")
+                         f"{particle}: {quantity}{at}{where}")
 
 
 class Interrupted(RuntimeError):

@@ -9,8 +9,9 @@ Between chunks the driver reads the chunk's :class:`~fpsi_jax.state.Status`:
   with more room from the state at the start of the chunk and the chunk is redone, so no
   pair is ever dropped;
 * a bad particle (non-finite, density out of band, out of the domain): the run stops with
-  :class:`SimulationError` naming the step, time, particle and quantity; the output file
-  keeps every frame written before (all of them finite).
+  :class:`SimulationError` naming the step, time, particle and quantity, and where that
+  particle was in the last good frame; the output file keeps every frame written before
+  (all of them finite).
 """
 from __future__ import annotations
 
@@ -228,15 +229,25 @@ def reallocate(phys: Physics, state: State) -> State:
 
 
 def raise_if_unstable(status, dt: float, output: str | None = None,
-                      t_good: float | None = None) -> None:
+                      t_good: float | None = None, good: State | None = None) -> None:
     """Raise :class:`SimulationError` (step, time, particle, quantity) if ``status`` (a
-    chunk's :class:`~fpsi_jax.model.state.Status`) records a bad particle."""
+    chunk's :class:`~fpsi_jax.model.state.Status`) records a bad particle; with ``good``,
+    the chunk's start State (the last good frame), also where that particle was then and,
+    for a fluid particle among grains, its voidage: what to look at in the output."""
     if not bool(status.bad):
         return
     code = int(status.code)
-    raise SimulationError(int(status.step), int(status.step) * dt, int(status.particle),
-                          STATUS_CODES[code], phase="solid" if code >= 6 else "fluid",
-                          output=output, t_good=t_good)
+    i, phase = int(status.particle), "solid" if code >= 6 else "fluid"
+    position = voidage = None
+    if good is not None:
+        body = good.solid if phase == "solid" else good.fluid
+        if body is not None and 0 <= i < body.x.shape[0]:
+            position = tuple(float(v) for v in np.asarray(body.x[i]))
+            if phase == "fluid" and good.fpi is not None:
+                voidage = float(good.fpi.eps[i])
+    raise SimulationError(int(status.step), int(status.step) * dt, i, STATUS_CODES[code],
+                          phase=phase, output=output, t_good=t_good, position=position,
+                          voidage=voidage)
 
 
 @dataclass
@@ -265,7 +276,7 @@ def run_until_fits(attempt: Callable, phys: Physics, state: State, dt: float, *,
             phys = grow(phys, end)
             state = reallocate(phys, state)
             continue
-        raise_if_unstable(end.status, dt, output, t_good=float(state.t))
+        raise_if_unstable(end.status, dt, output, t_good=float(state.t), good=state)
         return Chunk(phys=phys, state=state, end=end, result=result, regrowths=k)
     raise RuntimeError(f"the neighbour lists still overflowed after {max_regrowths} "
                        "regrowths")

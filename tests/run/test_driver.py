@@ -37,6 +37,31 @@ def test_unstable_run_stops_with_diagnosis_and_keeps_good_frames(tmp_path):
         assert np.all(np.isfinite(a)), k                   # and no NaN was written
     with h5py.File(out) as f:
         assert "unstable" in f.attrs["message"]
+    # where the particle was in the last good frame, the file's last frame
+    np.testing.assert_allclose(e.position, run.fluid["x"][-1][e.particle], rtol=1e-6)
+    assert f"x = {e.position[0]:.4g}, y = {e.position[1]:.4g} m in the last good" in msg
+    assert e.voidage is None and "voidage" not in msg          # no grains in this scene
+
+
+def test_an_unstable_fluid_particle_among_grains_is_named_with_its_voidage():
+    """The message gives the last good frame's position and, among grains, the voidage:
+    a fluid particle's status forged bad in the first chunk of a grain scene."""
+    import jax.numpy as jnp
+    from fpsi_jax.run.driver import raise_if_unstable, setup
+    from fpsi_jax.solver import init_state
+    sc = cases.build("sedimentation", dx=0.004)
+    phys, params = setup(sc)
+    st = init_state(sc, phys, params.as_arrays(jnp.float32))
+    i = int(np.argmin(np.asarray(st.fpi.eps)))                 # beside the grain
+    bad = st.status.replace(bad=jnp.asarray(True), code=jnp.asarray(1, jnp.int32),
+                            particle=jnp.asarray(i, jnp.int32), step=jnp.asarray(7, jnp.int32))
+    with pytest.raises(SimulationError) as info:
+        raise_if_unstable(bad, 1e-4, good=st)
+    e = info.value
+    assert e.particle == i and e.phase == "fluid"
+    np.testing.assert_allclose(e.position, np.asarray(st.fluid.x[i]), rtol=1e-6)
+    assert e.voidage == pytest.approx(float(st.fpi.eps[i])) and e.voidage < 0.999
+    assert f"voidage {e.voidage:.3g})" in str(e)
 
 
 def test_simulate_writes_frames_and_reports_speed(tmp_path, tiny_tank):
