@@ -31,7 +31,11 @@ VARIANTS = [("as run", 1.0, {}), ("0.9 of the step", 0.9, {}), ("0.75 of the ste
             ("no delta-SPH", 1.0, {"delta_sph": False}),
             ("no lubrication", 1.0, {"lubrication": False}),
             ("no XSPH", 1.0, {"xsph": False}),
-            ("no artificial viscosity", 1.0, {"artificial_viscosity": False})]
+            ("no artificial viscosity", 1.0, {"artificial_viscosity": False}),
+            ("no anti-clump", 1.0, {"anticlump": False}),
+            ("no anti-clump at walls", 1.0, {"anticlump_boundary": False}),
+            ("continuity at v", 1.0, {"transport_continuity": False}),
+            ("fixed h", 1.0, {"variable_h": False})]
 
 
 def run(path, h5, frac, switches, steps):
