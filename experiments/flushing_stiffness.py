@@ -16,7 +16,8 @@ symmetric pressure force −(1/ρ_i) Σ_j V_j (P_i + P_j) ∇_iW_ij and its adjo
 (ρ_i Σ_j V_j u_i·∇_iW_ij) the particle's own pressure and its own velocity meet through
 this one vector, so a particle displaced along it oscillates at ω ≥ c0 |Σ_j V_j ∇_iW_ij|
 (its neighbours' pressure responses add to it): zero in a uniform lattice (G ≈ 0.003 in
-the clear water), and as large as the neighbours' superficial volumes are uneven. Writes experiments/results/flushing_stiffness.{csv,png}:
+the clear water); it is the gradient of the volume sum Σ_j V_j W_ij, which uneven
+superficial volumes or crowded particles make. Writes experiments/results/flushing_stiffness.{csv,png}:
 per frame the largest G, which particle, its ε0 (mass / ρ0Δx²) and ε.
 """
 from __future__ import annotations
