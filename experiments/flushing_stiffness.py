@@ -50,7 +50,8 @@ def lattice_sum(kern, dx, h):
 
 def volume_gradient(kern):
     """A jitted (x, h, columns' positions and volumes) -> |Σ_j V_j ∇_iW_ij| for every
-    fluid row i over all columns j (brute force; the kernel the step uses)."""
+    fluid row i over all columns j (brute force, (rows, columns) arrays: scenes of a few
+    thousand particles; the kernel the step uses)."""
     @jax.jit
     def g(x, hf, xs, vs):
         r = x[:, None, :] - xs[None, :, :]
