@@ -45,7 +45,7 @@ def test_unstable_run_stops_with_diagnosis_and_keeps_good_frames(tmp_path):
 
 def test_an_unstable_fluid_particle_among_grains_is_named_with_its_voidage():
     """The message gives the last good frame's position and, among grains, the voidage:
-    a fluid particle's status forged bad in the first chunk of a grain scene."""
+    a fluid particle beside the settling grain marked bad in the scene's first state."""
     import jax.numpy as jnp
     from fpsi_jax.run.driver import raise_if_unstable, setup
     from fpsi_jax.solver import init_state
