@@ -130,7 +130,7 @@ class Parking:
 SWITCHES = ("xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
             "artificial_viscosity", "wall_repulsion", "x64", "fpi", "lubrication",
             "wall_images", "sort_fluid", "transport_continuity", "dem_list_substeps",
-            "structure_acceleration", "added_mass")
+            "structure_acceleration", "added_mass", "wall_reaction")
 #: numeric Physics options: (lo, hi, lo_open, hi_open, integer)
 RANGES = {"h_margin": (1.0, 2.0, False, False, False),
           "rho_tolerance": (0.0, 1.0, True, False, False),
@@ -239,6 +239,9 @@ class Physics:
       wall_force           boundary rows (a, b): the step records the fluid's force on
                            boundary particles a … b − 1 (BoundaryState.force; a force probe
                            on an obstacle sets it); () records none, the default
+      wall_reaction        the step records the discs' force on each DEM wall
+                           (WallState.reaction; a force probe on an obstacle with DEM
+                           walls sets it); off by default
       h_margin             the neighbour cut-off allows h to grow to h_margin·h0
       rho_tolerance        |ρ/ρ0 − 1| above this marks a run unstable
       x64                  float64 everywhere
@@ -371,6 +374,7 @@ class Physics:
     sort_fluid: bool = False
     shifting: float = 0.0
     wall_force: tuple = ()
+    wall_reaction: bool = False
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
                "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
@@ -379,7 +383,8 @@ class Physics:
                "fpi_pressure", "eps_floor", "drag", "pair_block", "rebuild_block",
                "density_diffusion",
                "wall_images", "shifting", "sort_fluid", "transport_continuity", "added_mass",
-               "dem_list_substeps", "structure_acceleration", "wall_force")
+               "dem_list_substeps", "structure_acceleration", "wall_force",
+               "wall_reaction")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,

@@ -93,13 +93,18 @@ class WallState:
     that may touch a wall until the DEM list is next rebuilt (physics.dem.walls_near at
     the list's build positions), padded with n_solid; ``n_near`` (int32 scalar) how many
     there are. The sub-steps evaluate the wall contacts of those discs only, of none
-    while n_near = 0, and of every disc while n_near > c. None: always every disc."""
+    while n_near = 0, and of every disc while n_near > c. None: always every disc.
+    ``reaction`` (w, 3), only with Physics.wall_reaction (else None): the discs' force on
+    each wall (F_x, F_y) and its moment about the origin, Σ c × F with c the contact point
+    (physics.dem.wall_contacts), the mean over the last step's DEM sub-steps (the impulse
+    the wall took over the step / Δt)."""
 
     a: Any
     b: Any
     side: Any = None
     near: Any = None
     n_near: Any = None
+    reaction: Any = None
 
 
 @pytree_dataclass

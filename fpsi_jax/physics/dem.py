@@ -74,23 +74,33 @@ def _pair_geometry_xy(dxx, dxy, valid, ra, rb):
     return dxx * inv, dxy * inv, jnp.where(valid & ok, ra + rb - d, -1.0)
 
 
-def _contact_sum(dp, nx, ny, delta, ra, rb, dvx, dvy, omega_a, omega_b, m, shear, dt):
+def _contact_pairs(dp, nx, ny, delta, ra, rb, dvx, dvy, omega_a, omega_b, m, shear, dt):
     """The contact law for every (row, slot) pair with normal (n_x, n_y) (A → B) and
-    overlap ``delta``, summed over slots onto the row body A.
+    overlap ``delta``: (the force on B, F_n n + F_s t, as its x and y components, the lever
+    ℓ_A = R_A − δ/2, the new history), each (n, K); the force on A is the opposite, and
+    its torque −F_s ℓ_A.
 
     (dvx, dvy) = v_B − v_A; every pair quantity is an (n, K) array of one component (XLA:CPU
     emits a sum over a last axis of 2, as a dot product of (n, K, 2) arrays, as a reduction
     of its own; on components the whole law is one loop). ra, rb radii (rb = 0 for a
-    wall). Returns (force (n, 2), torque (n,), new history (n, K), overlap (n, K))."""
+    wall)."""
     tx, ty = -ny, nx
     la, lb = ra - 0.5 * delta, rb - 0.5 * delta
     vn = dvx * nx + dvy * ny
     vs = dvx * tx + dvy * ty - omega_b * lb - omega_a * la
     fn, fs, hist = linear_contact(dp.kn, dp.ks, dp.mu, dp.beta_n, dp.beta_s, delta, vn, vs,
                                   shear, m, dt)
+    return fn * nx + fs * tx, fn * ny + fs * ty, fs, la, hist
+
+
+def _contact_sum(dp, nx, ny, delta, ra, rb, dvx, dvy, omega_a, omega_b, m, shear, dt):
+    """:func:`_contact_pairs` summed over slots onto the row body A. Returns (force (n, 2),
+    torque (n,), new history (n, K), overlap (n, K))."""
+    fbx, fby, fs, la, hist = _contact_pairs(dp, nx, ny, delta, ra, rb, dvx, dvy, omega_a,
+                                            omega_b, m, shear, dt)
     # three (n, K) terms summed over the slot axis in one variadic reduction: a sum of the
     # (n, K, 2) force over its middle axis ran 3× slower on XLA:CPU
-    fx, fy, tq = sum_neighbours(fn * nx + fs * tx, fn * ny + fs * ty, fs * la)
+    fx, fy, tq = sum_neighbours(fbx, fby, fs * la)
     return -jnp.stack([fx, fy], axis=-1), -tq, hist, delta
 
 
@@ -167,16 +177,31 @@ def _wall_pair_geometry_xy(x, radius, a, b, side=None):
     return nx, ny, delta
 
 
-def wall_contacts(dp, x, v, omega, radius, mass, a, b, shear, dt, side=None):
+def wall_contacts(dp, x, v, omega, radius, mass, a, b, shear, dt, side=None,
+                  reaction=None):
     """Disc–wall contacts (W5): the wall is body B, at rest, with zero radius and infinite
     mass; ``side`` the walls' active sides (None: all two-sided; :func:`wall_pair_geometry`).
-    Returns (force (n, 2), torque (n,), new history (n, W), overlap (n, W))."""
+    Returns (force (n, 2), torque (n,), new history (n, W), overlap (n, W)).
+
+    ``reaction`` (n,) bool, the rows to count: then also the discs' force on each wall and
+    its moment about the origin, (W, 3) = Σ_i (F_x, F_y, c × F) over those rows, F the
+    opposite of the wall's force on disc i, applied at the contact point c = x_i + ℓ n
+    (ℓ = R − δ/2, where the disc's torque −F_s ℓ puts it), so that force and angular
+    momentum pass between discs and walls unchanged."""
     shape = shear.shape
     nx, ny, delta = _wall_pair_geometry_xy(x, radius, a, b, side)
-    return _contact_sum(dp, nx, ny, delta, radius[:, None], 0.0,
-                        jnp.broadcast_to(-v[:, 0, None], shape),
-                        jnp.broadcast_to(-v[:, 1, None], shape), omega[:, None], 0.0,
-                        jnp.broadcast_to(mass[:, None], shape), shear, dt)
+    args = (dp, nx, ny, delta, radius[:, None], 0.0, jnp.broadcast_to(-v[:, 0, None], shape),
+            jnp.broadcast_to(-v[:, 1, None], shape), omega[:, None], 0.0,
+            jnp.broadcast_to(mass[:, None], shape), shear, dt)
+    if reaction is None:
+        return _contact_sum(*args)
+    fbx, fby, fs, la, hist = _contact_pairs(*args)
+    fx, fy, tq = sum_neighbours(fbx, fby, fs * la)
+    on = reaction[:, None]
+    cx, cy = x[:, 0, None] + la * nx, x[:, 1, None] + la * ny
+    per_wall = jnp.stack([jnp.sum(jnp.where(on, q, 0.0), axis=0)
+                          for q in (fbx, fby, cx * fby - cy * fbx)], axis=-1)
+    return -jnp.stack([fx, fy], axis=-1), -tq, hist, delta, per_wall
 
 
 def walls_near(x, radius, a, b, side, margin, held=None):

@@ -324,6 +324,8 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
     if rows and "wall_force" not in physics_overrides:   # an obstacle force probe's rows
         had = scene.options.get("wall_force") or rows
         physics_overrides["wall_force"] = (min(rows[0], had[0]), max(rows[1], had[1]))
+    if probing.wall_reaction(probes):           # an obstacle force probe's DEM walls
+        physics_overrides.setdefault("wall_reaction", True)
     phys, params = setup(scene, dt, params, unsafe_dt=unsafe_dt, **physics_overrides)
     dt = float(params.dt)
     p = params.as_arrays(stages.dtype(phys))

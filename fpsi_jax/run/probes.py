@@ -19,9 +19,9 @@ Kinds (the scene file's ``[[probe]] kind``):
 kind            what                                                      components
 ==============  ========================================================  ==============
 displacement    mean displacement of a set of discs from its start        ux, uy [m]
-force           the fluid's force on a set of structure discs, or on an   Fx, Fy [N/m],
-                obstacle's boundary particles, and its moment about a     M [N m/m]
-                point (Σ (x_i − c) × F_i)
+force           the fluid's force on a set of structure discs, or the     Fx, Fy [N/m],
+                fluid's and the discs' force on an obstacle, and its      M [N m/m]
+                moment about a point (Σ (x_i − c) × F_i)
 pressure        fluid pressure at a point: Shepard interpolation          p [Pa]
                 Σ P_j W_j V_j / Σ W_j V_j, V_j = m_j/ρ_j (0 when dry)
 water_level     free-surface height at x: the highest fluid particle      level [m]
@@ -125,32 +125,71 @@ def force(name: str, scene, idx, about=None) -> Probe:
                  {"discs": int(rows.size), "about": c.tolist()})
 
 
-def obstacle_force(name: str, scene, rows, about=None) -> Probe:
-    """The fluid's force on the boundary particles ``rows`` = (a, b), a … b − 1 of
-    ``scene.boundary`` (a fixed obstacle: the scene file's ``[[obstacle]]`` blocks follow the
-    tank's walls), and its moment about ``about`` (default: their centroid), anticlockwise
-    positive. Each fluid–boundary pair's momentum term counts once, F_B = −Σ_F m_F a_{F←B},
-    as for a structure (what DualSPHysics' ComputeForces sums on boundary particles). It is
-    the water's force: grains pressing on the obstacle do so through its DEM walls, which
-    it does not include. The run computes it only for the rows a probe asks for
-    (``spec['boundary_rows']``, which :func:`~fpsi_jax.run.driver.simulate` passes on as
-    ``Physics.wall_force``)."""
-    _need(scene, "boundary", name)
-    a, b = (int(r) for r in rows)
-    if not 0 <= a < b <= scene.boundary.n:
-        raise ParameterError(f"probe {name!r}: boundary rows ({a}, {b}) out of range; "
-                             f"allowed 0 <= a < b <= {scene.boundary.n}")
-    xb = np.asarray(scene.boundary.x, float)[a:b]
-    c = xb.mean(axis=0) if about is None else np.asarray(about, float)
+def obstacle_force(name: str, scene, rows=None, about=None, walls=None) -> Probe:
+    """The force of the water and of the discs on a fixed obstacle, and its moment about
+    ``about`` (default: the centroid of its boundary particles, or of its walls' ends),
+    anticlockwise positive.
+
+    ``rows`` = (a, b): its boundary particles a … b − 1 of ``scene.boundary`` (the scene
+    file's ``[[obstacle]]`` blocks follow the tank's walls). Each fluid–boundary pair's
+    momentum term counts once, F_B = −Σ_F m_F a_{F←B}, as for a structure (what
+    DualSPHysics' ComputeForces sums on boundary particles), at the step's SPH evaluation.
+
+    ``walls`` = (a, b): its DEM walls a … b − 1 of ``scene.walls``, through which grains and
+    structures press on it: the opposite of the walls' contact forces on the discs, applied
+    at the contact points, the mean over the step's DEM sub-steps (WallState.reaction).
+
+    The run computes these only when a probe asks: the boundary rows
+    (``spec['boundary_rows']``, passed on as ``Physics.wall_force``) and the walls
+    (``spec['dem_walls']``, ``Physics.wall_reaction``), as
+    :func:`~fpsi_jax.run.driver.simulate` arranges."""
+    if rows is None and walls is None:
+        raise ParameterError(f"probe {name!r}: the obstacle has neither boundary particles "
+                             "nor DEM walls")
+    spec, pts = {}, []
+    if rows is not None:
+        _need(scene, "boundary", name)
+        a, b = (int(r) for r in rows)
+        if not 0 <= a < b <= scene.boundary.n:
+            raise ParameterError(f"probe {name!r}: boundary rows ({a}, {b}) out of range; "
+                                 f"allowed 0 <= a < b <= {scene.boundary.n}")
+        xb = np.asarray(scene.boundary.x, float)[a:b]
+        spec["boundary_rows"], pts = [a, b], [xb]
+    if walls is not None:
+        if scene.walls is None:
+            raise ParameterError(f"probe {name!r}: the scene has no DEM walls")
+        wa, wb = (int(r) for r in walls)
+        if not 0 <= wa < wb <= scene.walls.n:
+            raise ParameterError(f"probe {name!r}: DEM walls ({wa}, {wb}) out of range; "
+                                 f"allowed 0 <= a < b <= {scene.walls.n}")
+        spec["dem_walls"] = [wa, wb]
+        if rows is None:
+            pts = [np.asarray(scene.walls.a, float)[wa:wb],
+                   np.asarray(scene.walls.b, float)[wa:wb]]
+    c = np.concatenate(pts).mean(axis=0) if about is None else np.asarray(about, float)
+    spec["about"] = c.tolist()
 
     def fn(s):
-        f = s.boundary.force[a:b]
-        x = jnp.asarray(xb - c, f.dtype)
-        m = jnp.sum(x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0])
-        return jnp.concatenate([jnp.sum(f, axis=0), m[None]])
+        dtype = (s.walls.reaction if rows is None else s.boundary.force).dtype
+        cc = jnp.asarray(c, dtype)
+        total = jnp.zeros(3, dtype)
+        if rows is not None:
+            f = s.boundary.force[a:b]
+            x = jnp.asarray(xb, dtype) - cc
+            m = jnp.sum(x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0])
+            total = total + jnp.concatenate([jnp.sum(f, axis=0), m[None]])
+        if walls is not None:
+            r = jnp.sum(s.walls.reaction[wa:wb], axis=0)     # moment about the origin
+            total = total + r.at[2].add(-(cc[0] * r[1] - cc[1] * r[0]))
+        return total
 
-    return Probe(name, "force", fn, ("Fx", "Fy", "M"), ("N/m", "N/m", "N m/m"),
-                 {"boundary_rows": [a, b], "about": c.tolist()})
+    return Probe(name, "force", fn, ("Fx", "Fy", "M"), ("N/m", "N/m", "N m/m"), spec)
+
+
+def wall_reaction(probes) -> bool:
+    """Whether any probe of ``probes`` reads the discs' force on DEM walls
+    (Physics.wall_reaction)."""
+    return any("dem_walls" in p.spec for p in probes or ())
 
 
 def wall_force_rows(probes) -> tuple:

@@ -394,12 +394,13 @@ def compose(spec: dict, path: str) -> SceneFile:
             wall_a.append(w.a)
             wall_b.append(w.b)
             wall_side.append(w.sides())         # the tank's walls act on the inside
-    obstacles = {}                               # name -> its boundary rows (a, b)
+    obstacles = {}             # name -> (its boundary rows (a, b), its DEM walls (a, b))
     for i, ob in enumerate(spec.get("obstacle", [])):
         how = _shape(path, "obstacle", ob, i, ("box", "polygon", "polyline"))
         if ob["name"] is not None and (ob["name"] in names or ob["name"] in obstacles):
             fail(path, "obstacle", f"name {ob['name']!r} is used by another body or "
                  "obstacle", ob, i)
+        rows = walls_of = None
         if fluid is not None:
             first_row = sum(len(x) for x in xb_parts)
             dxo = ob["dx"] or (tank["dx_boundary"] if tank and tank["dx_boundary"] else sp.dp)
@@ -415,14 +416,18 @@ def compose(spec: dict, path: str) -> SceneFile:
             dx_parts.append(dxo)
             if tank is not None and not np.any(_in_tank(tank, xb_parts[-1])):
                 fail(path, "obstacle", f"lies wholly outside the tank {_tank_span(tank)}", ob, i)
-            if ob["name"] is not None:
-                obstacles[ob["name"]] = (first_row, first_row + len(xb_parts[-1]))
+            rows = (first_row, first_row + len(xb_parts[-1]))
         dem = has_discs if ob["dem_walls"] is None else ob["dem_walls"]
         if dem:
             a, b = _outline(ob)
+            first_wall = sum(len(w) for w in wall_a)
             wall_a.append(a)
             wall_b.append(b)
             wall_side.append(np.zeros(len(a)))  # an obstacle's outline acts on both sides
+            if has_discs:
+                walls_of = (first_wall, first_wall + len(a))
+        if ob["name"] is not None and (rows or walls_of):
+            obstacles[ob["name"]] = (rows, walls_of)
     boundary = None
     if xb_parts:
         blocks = [boundary_block(x, sp.rho0, d, hb) for x, d in zip(xb_parts, dx_parts)]
@@ -537,6 +542,8 @@ def compose(spec: dict, path: str) -> SceneFile:
     rows = P.wall_force_rows(probes)
     if rows:                     # the step records the fluid's force on these rows
         scene.options["wall_force"] = rows
+    if P.wall_reaction(probes):  # and the discs' force on the DEM walls
+        scene.options["wall_reaction"] = True
     out = dict(spec.get("output") or _defaults("output"))
     folder = os.path.dirname(os.path.abspath(path))
     if out["file"] is not None:
@@ -636,7 +643,8 @@ def _probes(path, spec, scene, bodies, obstacles=None):
                 fail(path, "probe", "key 'region' selects discs; a force probe on an "
                      "obstacle sums all its particles", pr, i)
             _probe_inside_domain(path, pr, i, scene)
-            probes.append(P.obstacle_force(name, scene, obstacles[pr["body"]], pr["about"]))
+            rows, walls = obstacles[pr["body"]]
+            probes.append(P.obstacle_force(name, scene, rows, pr["about"], walls))
             _reference(path, folder, pr, i, probes[-1], refs)
             continue
         if pr["body"] is not None:

@@ -302,13 +302,14 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
           "broken_bonds")),
       Key("body", "str", "", None, "name of a structure, grains, discs or kinematic group "
           "(displacement, force, bed_profile, broken_bonds), or of an obstacle (force: "
-          "the fluid's force on its boundary particles)"),
+          "the water's force on its boundary particles and the discs' on its DEM walls)"),
       Key("region", "region", "m", None, "only the body's discs in this region "
           "(displacement: e.g. the tip)"),
       Key("point", "point", "m", None, "pressure: where; displacement: the body's disc "
           "nearest to it"),
       Key("about", "point", "m", None, "force: moment reference point (default: the "
-          "discs' start centroid, or the obstacle's particles' centroid)"),
+          "discs' start centroid, or the obstacle's particles' centroid, or its walls' "
+          "ends' without fluid)"),
       Key("x", "float", "m", None, "water_level: where (the highest particle within one "
           "spacing of x)"),
       Key("direction", "str", "", "+x", "front: which way", choices=("+x", "-x")),

@@ -95,7 +95,9 @@ def allocated_state(scene: Scene, phys: Physics) -> State:
             t_out=a(np.full(so.n, -1.0)) if phys.open_sides else None)
         if scene.walls is not None:
             walls = WallState(a=a(scene.walls.a), b=a(scene.walls.b),
-                              side=a(scene.walls.sides()))
+                              side=a(scene.walls.sides()),
+                              reaction=(a(np.zeros((scene.walls.n, 3))) if phys.wall_reaction
+                                        else None))
         if scene.bonds is not None:
             i = jnp.asarray(scene.bonds.i, jnp.int32)
             j = jnp.asarray(scene.bonds.j, jnp.int32)

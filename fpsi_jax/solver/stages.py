@@ -157,22 +157,28 @@ def with_walls_near(phys: Physics, state: State) -> State:
     return state.replace(walls=state.walls.replace(near=rows, n_near=count))
 
 
-def _wall_forces(dp, own, s, walls, dt):
+def _wall_forces(dp, own, s, walls, dt, reaction=False):
     """The walls' force (n, 2), torque (n,) and new history (n, W) on every disc, from the
     discs ``walls.near`` lists (zeros elsewhere: a history of 0 is what the contact law
     leaves on pairs apart), from none while it lists none, and from the rows ``own``
-    picks while more discs are near than it has room for (or without ``walls.near``)."""
+    picks while more discs are near than it has room for (or without ``walls.near``).
+    ``reaction``: also the discs' force and moment on each wall, (W, 3)
+    (:func:`dem.wall_contacts`)."""
     n = s.x.shape[0]
     zero = (jnp.zeros_like(s.x), jnp.zeros_like(s.omega), jnp.zeros_like(s.wall_shear))
+    if reaction:
+        zero = zero + (jnp.zeros((walls.a.shape[0], 3), s.x.dtype),)
 
-    def contacts(pick):
-        return dem.wall_contacts(dp, pick(s.x), pick(s.v), pick(s.omega), pick(s.radius),
-                                 pick(s.mass), walls.a, walls.b, pick(s.wall_shear), dt,
-                                 walls.side)[:3]
+    def contacts(pick, counted):
+        out = dem.wall_contacts(dp, pick(s.x), pick(s.v), pick(s.omega), pick(s.radius),
+                                pick(s.mass), walls.a, walls.b, pick(s.wall_shear), dt,
+                                walls.side, counted if reaction else None)
+        return out[:3] + out[4:]
 
     def every():
         rows = own(jnp.arange(n, dtype=jnp.int32))
-        return tuple(z.at[rows].set(v) for z, v in zip(zero, contacts(own)))
+        out = contacts(own, jnp.ones(rows.shape, bool))
+        return tuple(z.at[rows].set(v) for z, v in zip(zero[:3], out[:3])) + out[3:]
 
     if walls.near is None:
         return every()
@@ -180,7 +186,9 @@ def _wall_forces(dp, own, s, walls, dt):
     def near():
         rows = walls.near                           # padded with n: dropped on the way back
         pick = functools.partial(take_rows, rows=jnp.minimum(rows, n - 1))
-        return tuple(z.at[rows].set(v, mode="drop") for z, v in zip(zero, contacts(pick)))
+        out = contacts(pick, rows < n)
+        return (tuple(z.at[rows].set(v, mode="drop") for z, v in zip(zero[:3], out[:3]))
+                + out[3:])
 
     branch = jnp.where(walls.n_near == 0, 0, jnp.where(walls.n_near <= walls.near.shape[0],
                                                        1, 2))
@@ -193,8 +201,10 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
     fracture at time state.t), gravity, external loads, the fluid's force ``f_fluid`` (held
     over the sub-steps), lubrication between ``wet`` grains (W24; :func:`wet_grains`),
     local and viscous damping. Stores the accelerations, the contact histories and the bond
-    state. ``dt`` is the shear-spring increment (0: none). ``m_added`` (n_solid,): the
-    grains' added mass (:func:`grain_added_mass`), which joins their translational inertia."""
+    state; with Physics.wall_reaction, the discs' force on each wall at these positions in
+    ``walls.reaction``. ``dt`` is the shear-spring increment (0: none). ``m_added``
+    (n_solid,): the grains' added mass (:func:`grain_added_mass`), which joins their
+    translational inertia."""
     dp, s, b = params.dem, state.solid, state.bonds
     x, v, omega = s.x, s.v, s.omega
     # the contact and wall sums run over the rows of the discs that move under their forces
@@ -209,11 +219,14 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
         force = jnp.zeros_like(x).at[rows].set(force)
         torque = jnp.zeros_like(omega).at[rows].set(torque)
         shear = s.shear.at[rows].set(shear)
-    wall_shear = s.wall_shear
+    wall_shear, walls = s.wall_shear, state.walls
     if state.walls is not None:
         with jax.named_scope("dem.walls"):
-            fw, tw, wall_shear = _wall_forces(dp, own, s, state.walls, dt)
+            fw, tw, wall_shear, *reaction = _wall_forces(dp, own, s, state.walls, dt,
+                                                         phys.wall_reaction)
         force, torque = force + fw, torque + tw
+        if reaction:
+            walls = state.walls.replace(reaction=reaction[0])
     if wet is not None:
         # on the grains' rows only: a structure disc is never wet
         mask, grains = wet
@@ -247,7 +260,7 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
     acc = jnp.where(free[:, None], force / inertia[:, None], 0.0)
     alpha = jnp.where(free, torque / s.inertia, 0.0)
     return state.replace(solid=s.replace(acc=acc, alpha=alpha, shear=shear,
-                                         wall_shear=wall_shear), bonds=b)
+                                         wall_shear=wall_shear), bonds=b, walls=walls)
 
 
 def _dem_list_update(phys: Physics, state: State, rebuild_now=None) -> State:
@@ -311,7 +324,12 @@ def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, w
                                                 omega=w_half))
     if check_list:
         state = _dem_list_update(phys, state)
+    before = state.walls.reaction if phys.wall_reaction and state.walls is not None else None
     state = disc_forces(phys, params, state, dt, f_fluid, wet, m_added)
+    if before is not None:          # the sub-steps' mean: the impulse over the step / Δt
+        walls = state.walls
+        state = state.replace(walls=walls.replace(
+            reaction=before + (dt / params.dt) * walls.reaction))
     s = state.solid
     with jax.named_scope("step.solid_kick"):
         return state.replace(solid=s.replace(v=s.v + 0.5 * dt * s.acc,
@@ -339,10 +357,13 @@ def discs(phys: Physics, params: Params, state: State) -> State:
     f_fluid = fluid_force_on_discs(phys, state)
     wet = wet_grains(phys, state)
     m_added = grain_added_mass(phys, state)
+    walls = state.walls
+    if phys.wall_reaction and walls is not None:    # the sub-steps add up their mean
+        walls = walls.replace(reaction=jnp.zeros_like(walls.reaction))
     # the loop carries the DEM part of the state only
     part = State(t=state.t, step=state.step, fluid=None, boundary=None, nbrs=None,
                  status=state.status, solid=state.solid, bonds=state.bonds,
-                 solid_nbrs=state.solid_nbrs, walls=state.walls)
+                 solid_nbrs=state.solid_nbrs, walls=walls)
 
     def one(k, p):
         return _disc_substep(phys, params, p, t0 + (k + 1) * dts, dts, f_fluid, wet,

@@ -230,6 +230,49 @@ def test_wall_normal_force_dashpot_and_friction_torque():
     assert tq[0] < 0
 
 
+def test_wall_reaction_is_the_discs_force_on_the_wall_at_the_contact_point():
+    """The disc of the test above pushes the floor with −(its force), applied at the
+    contact point c = (0.05, 0.009 − ℓ) = (0.05, −0.0005): moment about the origin
+    c_x F_y − c_y F_x. A row left out of ``reaction`` adds nothing."""
+    beta = 0.1
+    dp = DemParams(kn=1.0e5, ks=5.0e4, mu=0.3, beta_n=beta)
+    x, v, w = A([[0.05, 0.009], [0.02, 0.009]]), A([[0.2, -0.1], [0.0, 0.0]]), A([5.0, 0.0])
+    out = dem.wall_contacts(dp, x, v, w, A(np.full(2, R)), A(np.full(2, 0.9)),
+                            A([[0.0, 0.0]]), A([[0.1, 0.0]]), A(np.zeros((2, 1))), 1e-4,
+                            reaction=jnp.asarray([True, False]))
+    f_disc = np.asarray(out[0])[0]
+    fx, fy = -f_disc
+    cx, cy = 0.05, 0.009 - 0.0095
+    np.testing.assert_allclose(np.asarray(out[4])[0], [fx, fy, cx * fy - cy * fx], rtol=RTOL)
+    # the four outputs are the ones without ``reaction``
+    plain = dem.wall_contacts(dp, x, v, w, A(np.full(2, R)), A(np.full(2, 0.9)),
+                              A([[0.0, 0.0]]), A([[0.1, 0.0]]), A(np.zeros((2, 1))), 1e-4)
+    for a, b in zip(out[:4], plain):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_wall_reaction_conserves_momentum_and_angular_momentum():
+    """Discs against the four walls of a box and a free segment inside it: the walls'
+    forces sum to minus the discs', and their moments about the origin to minus the
+    discs' Σ x_i × F_i + τ_i."""
+    rng = np.random.default_rng(3)
+    a = A([[0.0, 0.0], [0.1, 0.0], [0.1, 0.1], [0.0, 0.1], [0.03, 0.04]])
+    b = A([[0.1, 0.0], [0.1, 0.1], [0.0, 0.1], [0.0, 0.0], [0.07, 0.06]])
+    x = np.array([[0.05, 0.008], [0.093, 0.05], [0.05, 0.095], [0.006, 0.03],
+                  [0.05, 0.058], [0.006, 0.006]])
+    k = len(x)
+    dp = DemParams(kn=1.0e5, ks=5.0e4, mu=0.3, beta_n=0.2, beta_s=0.1)
+    f, tq, _, delta, per_wall = dem.wall_contacts(
+        dp, A(x), A(rng.normal(0, 0.3, (k, 2))), A(rng.normal(0, 5, k)), A(np.full(k, R)),
+        A(np.full(k, 0.9)), a, b, A(rng.normal(0, 1.0, (k, 5))), 1e-4,
+        reaction=jnp.ones(k, bool))
+    f, tq, per_wall = np.asarray(f, float), np.asarray(tq, float), np.asarray(per_wall, float)
+    assert (np.asarray(delta) > 0).sum() >= 7                 # the corner disc touches two
+    np.testing.assert_allclose(per_wall[:, :2].sum(axis=0), -f.sum(axis=0), atol=1e-4)
+    ang = np.sum(x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0] + tq)
+    np.testing.assert_allclose(per_wall[:, 2].sum(), -ang, atol=1e-6)
+
+
 def test_wall_coulomb_and_reset():
     f, _, hist, _ = one_wall([[0.05, 0.009]], v=[[10.0, 0.0]], shear=0.0)
     np.testing.assert_allclose(hist[0, 0], 0.3 * 100.0, rtol=RTOL)

@@ -81,6 +81,66 @@ def test_obstacle_force_sums_its_rows_and_their_moment_about_their_centroid():
         P.obstacle_force("pier", sc, (2, 6))
 
 
+def test_obstacle_force_adds_its_walls_reaction_with_the_moment_moved_to_about():
+    """Walls (1, 3) of four: their recorded (F_x, F_y, moment about the origin) summed, the
+    moment moved to ``about`` c: M_c = M_0 − c × F; with boundary rows as well, both add."""
+    walls = NS(n=4, a=np.zeros((4, 2)), b=np.ones((4, 2)))
+    sc = NS(walls=walls, boundary=NS(n=2, x=np.array([[0.0, 0.0], [0.2, 0.0]])))
+    r = np.array([[9.0, 9.0, 9.0], [1.0, -2.0, 0.3], [0.5, -1.0, 0.1], [9.0, 9.0, 9.0]])
+    p = P.obstacle_force("pier", sc, walls=(1, 3), about=(0.1, 0.2))
+    m = 0.4 - (0.1 * -3.0 - 0.2 * 1.5)
+    st = NS(walls=NS(reaction=jnp.asarray(r)), boundary=NS(force=jnp.asarray([[1.0, 0.0],
+                                                                               [0.0, 2.0]])))
+    np.testing.assert_allclose(p(st), [1.5, -3.0, m], rtol=1e-6)
+    both = P.obstacle_force("pier", sc, (0, 2), (0.1, 0.2), (1, 3))
+    m_rows = (-0.1 * 0.0 + 0.2 * 1.0) + (0.1 * 2.0 + 0.2 * 0.0)       # (x_B − c) × F_B
+    np.testing.assert_allclose(both(st), [2.5, -1.0, m + m_rows], rtol=1e-6)
+    assert P.wall_reaction([p]) and not P.wall_reaction([P.obstacle_force("b", sc, (0, 2))])
+    with pytest.raises(ParameterError, match="out of range"):
+        P.obstacle_force("pier", sc, walls=(2, 5))
+    with pytest.raises(ParameterError, match="neither"):
+        P.obstacle_force("pier", sc)
+
+
+STONES = """
+[scene]
+t_end = 0.1
+[tank]
+width = 0.3
+height = 0.25
+[[obstacle]]
+name = "block"
+box = [0.1, 0.0, 0.2, 0.05]
+[[discs]]
+name = "stones"
+points = [[0.12, 0.055], [0.17, 0.06]]
+radius = 0.005
+rho = 2700.0
+[contacts]
+kn = 1.0e5
+beta_n = 0.3
+[[probe]]
+name = "load"
+kind = "force"
+body = "block"
+"""
+
+
+def test_force_on_an_obstacle_is_the_weight_of_the_stones_resting_on_it(tmp_path):
+    """Two stones (R = 5 mm, ρ 2700: m g = 2.0803 N/m each) dropped onto a block, dry: once
+    they rest, its DEM walls carry their weight, −2 m g, with the moment about the block's
+    centre (0.15, 0.025) of their levers −0.03 and +0.02 m: +0.01 m g."""
+    from fpsi_jax import scenefile
+    path = tmp_path / "stones.toml"
+    path.write_text(STONES)
+    sf = scenefile.load(str(path))
+    assert sf.scene.options["wall_reaction"] and sf.probes[0].spec["dem_walls"] == [3, 7]
+    res = simulate(sf.scene, probes=sf.probes, progress=False)
+    mg = 2700.0 * np.pi * 0.005 ** 2 * 9.81
+    np.testing.assert_allclose(res.probes["load"][-1], [0.0, -2 * mg, 0.01 * mg],
+                               rtol=1e-4, atol=1e-5 * mg)
+
+
 BLOCK = """
 [scene]
 t_end = 0.15
