@@ -87,13 +87,18 @@ def run(name, t_end=None):
         shutil.copy(tmp / src, OUT / src)
     thin(tmp / f"{name}_probes.csv", OUT / f"{name}_probes.csv")
     summary = next(l for l in proc.stdout.splitlines() if " steps of " in l)
-    m = re.search(r"(\d+) steps of ([\d.e+-]+) s x (\d+) DEM sub-steps, (\d+) particles, "
-                  r"wall ([\d.]+) s.*?([\d.]+) M particle-steps/s", summary)
+    m = re.search(r"(\d+) steps of ([\d.e+-]+) s x (\d+) DEM sub-steps, (\d+) particles",
+                  summary)
     rec = {"rc": 0, "process_wall_s": round(wall, 1), "summary": summary}
     if m:
         rec.update(steps=int(m[1]), dt_s=float(m[2]), dem_substeps=int(m[3]),
-                   particles=int(m[4]), run_wall_s=float(m[5]),
-                   M_particle_steps_per_s=float(m[6]))
+                   particles=int(m[4]))
+    m = re.search(r"stepping ([\d.]+) s", summary)
+    if m:
+        rec.update(stepping_wall_s=float(m[1]))
+    m = re.search(r"([\d.]+) M particle-steps/s", summary)
+    if m:
+        rec.update(M_particle_steps_per_s=float(m[1]))
     rec.update(figures(name, read_probes(tmp / f"{name}_probes.csv")))
     shutil.rmtree(tmp)
     return rec

@@ -14,15 +14,17 @@ def pyplot():
 
 
 def draw_solids(ax, scene, state, color="tab:orange"):
-    """Discs as circles (clamped ones grey), intact bonds as lines, walls as thick lines."""
+    """Discs as circles (clamped ones grey; none parked after leaving through an open
+    side), intact bonds as lines, walls as thick lines."""
     from matplotlib.collections import LineCollection, PatchCollection
     from matplotlib.patches import Circle
 
     s = state.solid
     x, r = np.asarray(s.x), np.asarray(s.radius)
     fixed = np.asarray(s.fixed)
-    circles = [Circle(xy, rad) for xy, rad in zip(x, r)]
-    ax.add_collection(PatchCollection(circles, facecolor=np.where(fixed, "0.6", color),
+    here = np.ones(len(x), bool) if s.t_out is None else np.asarray(s.t_out) < 0
+    circles = [Circle(xy, rad) for xy, rad in zip(x[here], r[here])]
+    ax.add_collection(PatchCollection(circles, facecolor=np.where(fixed[here], "0.6", color),
                                       edgecolor="k", linewidth=0.2))
     if state.bonds is not None:
         b = state.bonds
@@ -36,13 +38,14 @@ def draw_solids(ax, scene, state, color="tab:orange"):
 
 
 def draw_snapshot(fig, ax, scene, res):
-    """The final state of a run on ``ax``: fluid particles coloured by speed, boundary
+    """The final state of a run on ``ax``: fluid particles coloured by speed (those still
+    in the computation: not the ones parked after leaving through an open side), boundary
     particles grey, discs, bonds and walls (:func:`draw_solids`)."""
     f = res.state.fluid
     if f is not None:
-        x = np.asarray(f.x)
-        sc = ax.scatter(x[:, 0], x[:, 1], c=np.linalg.norm(np.asarray(f.v), axis=1), s=2,
-                        cmap="viridis")
+        keep = slice(None) if f.t_out is None else np.asarray(f.t_out) < 0
+        x, v = np.asarray(f.x)[keep], np.asarray(f.v)[keep]
+        sc = ax.scatter(x[:, 0], x[:, 1], c=np.linalg.norm(v, axis=1), s=2, cmap="viridis")
         fig.colorbar(sc, ax=ax, label="|v| [m/s]")
     if scene.boundary is not None:
         ax.scatter(scene.boundary.x[:, 0], scene.boundary.x[:, 1], s=1, c="0.6")

@@ -161,7 +161,8 @@ STATUS_CODES = {
     6: "solid position is not finite",
     7: "solid velocity or rotation is not finite",
     8: "solid particle left the domain through a closed side",
-    9: "solid particle crossed a wall",
+    9: "solid particle crossed a wall (a contact too soft for the blow: a disc of mass M "
+       "at speed v presses v√(M/kn) into a wall, so raise [contacts] kn)",
 }
 
 
