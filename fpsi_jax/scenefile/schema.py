@@ -193,7 +193,9 @@ table("discs", True, "Discs that are neither a bonded structure nor grains in th
 
 table("kinematic", True, "Discs moving at a prescribed constant velocity whatever the forces "
       "(a gate lifted at a given speed); they push the fluid and the grains. Give `box`, "
-      "`polygon` or `points`.",
+      "`polygon` or `points`. A force probe on them reads the fluid's force only (the "
+      "contacts' force on a kinematic disc is never computed): for a fixed body that "
+      "grains or debris strike, an `[[obstacle]]`'s probe reads both.",
       *[k for k in _DISC_COMMON if k.name not in ("clamp", "load")],
       Key("mass_model", "str", "", "lattice", "disc mass model", choices=MASS),
       Key("coupled", "bool", "", True, "takes part in the fluid sums (physics.coupling)"))
