@@ -190,23 +190,31 @@ def interphase_beta(eps, slip, rho_f, d, mu, law=Drag.SPHERE):
     ¾ C_d ε(1−ε) ρ_f |ū−v| ε^(−2.65)/d (W20 prints 7.5; the published coefficient is 3/4).
     ``law`` 'cylinder': above ε = 0.8, (2/π) C_D,cyl ε(1−ε) ρ_f |ū−v| ε^(−2.65)/d with
     :func:`cylinder_drag_coefficient` (module docstring)."""
-    ergun = 150.0 * (1 - eps) ** 2 * mu / (eps * d * d) + 1.75 * (1 - eps) * rho_f * slip / d
+    return (1.0 - eps) * beta_per_solid(eps, slip, rho_f, d, mu, law)
+
+
+def beta_per_solid(eps, slip, rho_f, d, mu, law=Drag.SPHERE):
+    """β/(1 − ε), what the drag W19 multiplies V_p (ū − v) by: both branches of β (W20)
+    carry the factor (1 − ε), cancelled here rather than divided out, so a grain whose
+    fluid neighbours are clear water (ε = 1: one fluid particle at the edge of its kernel,
+    as when a wave front reaches a dry grain) gets the finite Wen–Yu limit instead of
+    0/0 (in float32 any ε within 6·10⁻⁸ of 1 rounds to 1)."""
+    ergun = 150.0 * (1 - eps) * mu / (eps * d * d) + 1.75 * rho_f * slip / d
     re = reynolds(slip, eps, rho_f, d, mu)
     if law == Drag.CYLINDER:
         coef = 2.0 / jnp.pi * cylinder_drag_coefficient(re)
     else:
         coef = 0.75 * drag_coefficient(re)
-    wen_yu = coef * eps * (1 - eps) * rho_f * slip * eps ** (-2.65) / d
+    wen_yu = coef * eps * rho_f * slip * eps ** (-2.65) / d
     return jnp.where(eps <= ERGUN_LIMIT, ergun, wen_yu)
 
 
 def drag_force(eps, u_f, v_p, vol_p, rho_f, d, mu, law=Drag.SPHERE):
     """F_d = β/(1 − ε) (ū_f − v_p) V_p (W19) on each grain; ``u_f`` the Shepard fluid
-    velocity at the grain, ``eps`` its voidage (< 1)."""
+    velocity at the grain, ``eps`` its voidage (≤ 1; :func:`beta_per_solid`)."""
     rel = u_f - v_p
     slip = _norm(rel)
-    beta = interphase_beta(eps, slip, rho_f, d, mu, law)
-    return (beta / (1.0 - eps) * vol_p)[:, None] * rel
+    return (beta_per_solid(eps, slip, rho_f, d, mu, law) * vol_p)[:, None] * rel
 
 
 def lubrication(x_ij, v_ij, d_mean, mu, gap_min, cutoff):
@@ -353,7 +361,7 @@ def grain_drag(rows: GrainRows, eps_f, v_f, v_p, vol_p, d_p, rho_f, mu, voidage_
     is_wet = wet > 0
     if voidage_mode == Voidage.AREA:
         eps_p = voidage_3d(eps_p)
-    eps_p = jnp.where(is_wet, jnp.clip(eps_p, EPS_MIN, 1.0 - 1e-9), 1.0 - 1e-9)
+    eps_p = jnp.where(is_wet, jnp.clip(eps_p, EPS_MIN, 1.0), 1.0)
     drag = drag_force(eps_p, u_f, v_p, vol_p, rho_f, d_p, mu, law)
     return eps_p, u_f, wet, jnp.where(is_wet[:, None], drag, 0.0)
 

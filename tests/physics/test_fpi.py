@@ -45,6 +45,29 @@ def test_drag_force_is_along_the_slip_with_W19_magnitude():
     np.testing.assert_allclose(f, beta / 0.05 * float(vol[0]) * rel, rtol=1e-12)
 
 
+def test_drag_of_a_grain_in_clear_water_is_finite_in_float32():
+    """ε = 1 exactly (a wave front reaching a dry grain: its one fluid neighbour at the
+    kernel's edge is clear water): β/(1 − ε) is the Wen–Yu limit ¾ C_d ρ s/d, not 0/0,
+    in float32 as in float64, for both laws; and β/(1 − ε) is β divided by 1 − ε where
+    that is exact."""
+    from fpsi_jax.model.options import Drag
+    s = 0.3
+    re = s * RHO * D / MU
+    cd = 24 / re * (1 + 0.15 * re ** 0.687)
+    for dtype in (jnp.float32, jnp.float64):
+        f = fpi.drag_force(jnp.asarray([1.0], dtype), jnp.asarray([[s, 0.0]], dtype),
+                           jnp.zeros((1, 2), dtype), jnp.asarray([1.0], dtype), RHO, D, MU)
+        assert np.isfinite(np.asarray(f)).all()
+        assert float(f[0, 0]) == pytest.approx(0.75 * cd * RHO * s * s / D, rel=1e-5)
+        fc = fpi.drag_force(jnp.asarray([1.0], dtype), jnp.asarray([[s, 0.0]], dtype),
+                            jnp.zeros((1, 2), dtype), jnp.asarray([1.0], dtype), RHO, D, MU,
+                            Drag.CYLINDER)
+        assert np.isfinite(np.asarray(fc)).all() and float(fc[0, 0]) > 0
+    for eps in (0.5, 0.8, 0.9):
+        assert float(fpi.beta_per_solid(eps, s, RHO, D, MU)) == pytest.approx(
+            float(fpi.interphase_beta(eps, s, RHO, D, MU)) / (1 - eps), rel=1e-12)
+
+
 def test_cylinder_drag_coefficient_sucker_brauer():
     """Hand values of 1.18 + 6.8 Re^−0.89 + 1.96 Re^−½ − 4e-4 Re/(1 + 3.64e-7 Re²):
     Re = 20 → 2.0830 (Dennis & Chang's steady solution: 2.045), Re = 1 → 9.9396."""
