@@ -76,6 +76,10 @@ def check_positive(**kw):
                lo_open=True)
 
 
+#: the seeds' floor of the fluid voidage in their packed beds (W6.2.2, W6.3)
+FLOORED_VOIDAGE = 0.8
+
+
 class SimulationError(RuntimeError):
     """A run went unstable. Attributes: step, time, particle, phase, quantity, output,
     position (the particle's (x, y) in the last good frame, or None) and voidage (a fluid
@@ -92,8 +96,13 @@ class SimulationError(RuntimeError):
             at = (f" (at x = {position[0]:.4g}, y = {position[1]:.4g} m in the last good "
                   f"frame{eps})")
         where = f"; frames up to t = {t_good:.6g} s are in {output}" if output else ""
+        hint = ""
+        if voidage is not None and voidage < FLOORED_VOIDAGE:
+            hint = ("; pore fluid of a packed bed under a flow can go unstable at its own "
+                    "voidage (docs/physics.md, Packed beds): [physics] voidage = \"mapped\" "
+                    f"with eps_floor = {FLOORED_VOIDAGE} runs it floored, as the seeds did")
         super().__init__(f"run unstable at step {step} (t = {t:.6g} s): {phase} particle "
-                         f"{particle}: {quantity}{at}{where}")
+                         f"{particle}: {quantity}{at}{where}{hint}")
 
 
 class Interrupted(RuntimeError):

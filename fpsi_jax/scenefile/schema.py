@@ -254,7 +254,10 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
       Key("voidage", "str", "", "area", "voidage model", choices=("area", "mapped")),
       Key("drag", "str", "", "sphere", "grain drag closure: the seed's sphere law (W19–W23) "
           "or a disc as a cylinder per unit length", choices=("sphere", "cylinder")),
-      Key("eps_floor", "float", "", 0.0, "lower bound of the fluid voidage", lo=0.0,
+      Key("eps_floor", "float", "", 0.0, "lower bound of the fluid voidage (0: the physical "
+          "voidage; a packed bed under a strong flow can go unstable at it, and runs with "
+          "voidage 'mapped' and eps_floor 0.8, the seeds' set-up, whose pore fluid is "
+          "heavier than its pores hold: docs/physics.md, Packed beds)", lo=0.0,
           hi=1.0, hi_open=True),
       Key("wall_images", "bool", "", True, "the grains' mirror images in the DEM walls count "
           "in the voidage (the part of a grain's kernel inside a wall goes back to the "

@@ -62,6 +62,17 @@ def test_an_unstable_fluid_particle_among_grains_is_named_with_its_voidage():
     np.testing.assert_allclose(e.position, np.asarray(st.fluid.x[i]), rtol=1e-6)
     assert e.voidage == pytest.approx(float(st.fpi.eps[i])) and e.voidage < 0.999
     assert f"voidage {e.voidage:.3g})" in str(e)
+    assert ("Packed beds" in str(e)) == (e.voidage < 0.8)      # an isolated grain: no hint
+
+
+def test_an_unstable_pore_particle_of_a_packed_bed_is_pointed_to_the_floored_set_up():
+    """Below the seeds' floor (ε < 0.8) the message names the keys that run a bed floored
+    and where the docs discuss it; above it (clear water) it does not."""
+    e = SimulationError(3, 0.1, 5, "density left the allowed band", position=(0.1, 0.01),
+                        voidage=0.18)
+    assert 'voidage = "mapped" with eps_floor = 0.8' in str(e) and "Packed beds" in str(e)
+    assert "eps_floor" not in str(SimulationError(3, 0.1, 5, "x", position=(0.1, 0.01),
+                                                  voidage=0.95))
 
 
 def test_simulate_writes_frames_and_reports_speed(tmp_path, tiny_tank):
