@@ -83,6 +83,14 @@ rho = 1100.0
      ["[[fluid.region]]", "water overlaps structure 'gate'"]),
     ("water in an obstacle", lambda t: t + "\n[[obstacle]]\nbox = [0.0, 0.0, 0.02, 0.02]\n",
      ["[[obstacle]] #1", "water lies inside"]),
+    ("discs in an obstacle", lambda t: t + '\n[[obstacle]]\nname = "pier"\n'
+     'box = [0.25, 0.0, 0.3, 0.05]\n[[grains]]\nname = "gravel"\n'
+     'box = [0.22, 0.0, 0.27, 0.01]\nd = 0.005\nrho = 2650.0\n',
+     ["[[grains]] 'gravel'", "of its discs lie inside obstacle 'pier'", "(the first at"]),
+    ("discs across a polyline obstacle", lambda t: t + '\n[[obstacle]]\n'
+     'polyline = [[0.3, 0.0], [0.3, 0.05]]\n[[grains]]\nname = "gravel"\n'
+     'box = [0.25, 0.0, 0.32, 0.01]\nd = 0.005\nrho = 2650.0\n',
+     ["[[grains]] 'gravel'", "lie inside obstacle 0"]),
     ("probe body missing", lambda t: edit(t, 'body = "gate"', 'body = "gat"'),
      ["[[probe]] 'tip'", "key 'body' = 'gat' names no body; bodies: gate"]),
     ("probe kind", lambda t: edit(t, 'kind = "displacement"', 'kind = "strain"'),
