@@ -106,12 +106,16 @@ def cmd_run(args):
                        resume=args.resume, **phys)
     except SimulationError as e:
         print(f"error: {e}", file=sys.stderr)
+        if want_plot:
+            _plot_stopped(case, scene, out, png, args, unsafe, phys)
         return 3
     except io.OutputError as e:
         print(f"error: {e}", file=sys.stderr)
         return 4
     except Interrupted as e:
         print(f"stopped: {e}", file=sys.stderr)
+        if want_plot:
+            _plot_stopped(case, scene, out, png, args, unsafe, phys)
         return 130 if e.signal == "SIGINT" else 143
     sub = (f" x {res.physics.dem_substeps} DEM sub-steps"
            if res.physics.has_fluid and res.physics.has_solid else "")
@@ -138,6 +142,42 @@ def cmd_run(args):
         for line in lines:
             print(line)
     return 0
+
+
+def _plot_stopped(case, scene, out, png, args, unsafe, phys):
+    """``--plot`` for a run that stopped early: its probes and snapshot up to the last good
+    frame of its file (a case with a plot of its own gets none: those plots read the whole
+    run)."""
+    from . import cases
+    from .cases.plotting import default_plot
+    from .run.driver import stopped
+
+    if not out or not os.path.exists(out) or (case is None and scene.name in cases.PLOTS):
+        print("no plot: the run stopped before its end", file=sys.stderr)
+        return
+    try:
+        res = stopped(scene, out, args.dt, unsafe, **phys)
+    except Exception as e:                      # the file is still the user's to open
+        print(f"no plot: {e}", file=sys.stderr)
+        return
+    os.makedirs(os.path.dirname(os.path.abspath(png)), exist_ok=True)
+    if case is not None and len(res.times):
+        from .scenefile.plot import plot_probes
+        lines = plot_probes(case, res, png)
+    elif case is None:
+        lines = default_plot(scene, res, png)
+    else:                                  # stopped within its first chunk: no probe row
+        from .cases.plotting import snapshot
+        snap = png[:-4] + "_snapshot.png"
+        snapshot(scene, res, snap)
+        lines = [f"wrote {snap}"]
+        if os.path.exists(png):            # an earlier run's probes: not this run's
+            os.remove(png)
+            lines.append(f"removed {png} (an earlier run's; no probe row was recorded "
+                         "before the stop)")
+    for line in lines:
+        print(f"{line} (up to the last good frame, t = {float(res.state.t):.6g} s)"
+              if line.startswith("wrote") else line)
 
 
 def cmd_validate(args):

@@ -423,6 +423,29 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
                   steps_run=done - (ck and int(ck.leaves[".step"]) or 0))
 
 
+@dataclass
+class Stopped:
+    """What the file of a run that stopped early holds, as far as plots read a
+    :class:`Result`: the state at its last complete frame and the probes up to it."""
+    state: State
+    times: np.ndarray
+    probes: dict
+
+
+def stopped(scene: Scene, output: str, dt: float | None = None, unsafe_dt: bool = False,
+            **physics_overrides) -> Stopped:
+    """The last good frame of ``output``, a run of ``scene`` with these settings that went
+    unstable or was interrupted (its checkpoint, as ``simulate(resume=...)`` restores it),
+    and its probes up to that frame: what ``fpsi run --plot`` draws for such a run."""
+    ck = io.load_checkpoint(output)
+    phys, params = setup(scene, dt, unsafe_dt=unsafe_dt, **physics_overrides)
+    phys = grown_like(phys, ck.physics)
+    p = params.as_arrays(stages.dtype(phys))
+    state = io.restore(init.init_state(scene, phys, p), ck)
+    times, values = io.read_probes(output)
+    return Stopped(state=state, times=times, probes=values)
+
+
 def grown_like(phys: Physics, saved: dict) -> Physics:
     """``phys`` with the neighbour-list sizes of ``saved`` (a run's Physics as JSON, as it
     had grown when it was checkpointed)."""

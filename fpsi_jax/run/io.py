@@ -520,6 +520,15 @@ def restore(state, ck: Checkpoint):
     return jax.tree_util.tree_unflatten(treedef, leaves)
 
 
+def read_probes(path) -> tuple:
+    """(times (S,), {name: (S, k)}) of the probes a run's file recorded (empty without any)."""
+    with h5py.File(path, "r", locking=False) as f:
+        if "probes" not in f:
+            return np.zeros(0), {}
+        g = f["probes"]
+        return g["time"][:], {k: g[k][:] for k in g if k != "time"}
+
+
 def truncate_probes(path, t_last: float):
     """Drop probe rows after ``t_last`` (written by a chunk whose frame was not)."""
     with h5py.File(path, "a", locking=False) as f:

@@ -93,3 +93,38 @@ def test_unsafe_dt_runs_above_the_bound_and_stops_clearly_when_it_blows_up(tmp_p
     rc = cli.main(base + ["--t-end", "0.1", "--dt", str(12 * dt), "--out", str(out)])
     assert rc == 3
     assert "run unstable at step" in capsys.readouterr().err
+
+
+PROBED = """
+[scene]
+t_end = 0.1
+[fluid]
+dx = 0.01
+[[fluid.region]]
+box = [0.0, 0.0, 0.1, 0.1]
+[tank]
+width = 0.3
+height = 0.15
+[[probe]]
+name = "front"
+kind = "front"
+"""
+
+
+def test_plot_of_a_run_that_went_unstable_draws_it_up_to_the_last_good_frame(tmp_path,
+                                                                            capsys):
+    """--plot on a run that stops (here a density band so tight that the collapsing
+    column leaves it after a few chunks): exit 3, and the probes and the snapshot of the
+    good frames are drawn, said to end there; an earlier run's plot is not left behind."""
+    path = tmp_path / "col.toml"
+    path.write_text(PROBED)
+    out, png = tmp_path / "col.h5", tmp_path / "col.png"
+    png.write_bytes(b"an earlier run's plot")
+    rc = cli.main(["run", str(path), "--set", "rho_tolerance=0.005", "--every", "0.002",
+                   "--plot", "--quiet", "--out", str(out)])
+    text = capsys.readouterr()
+    assert rc == 3 and "run unstable at step" in text.err
+    assert "(up to the last good frame, t = " in text.out
+    assert png.read_bytes()[:4] == b"\x89PNG" and (tmp_path / "col_snapshot.png").exists()
+    times, values = io.read_probes(str(out))
+    assert 0 < len(times) == len(values["front"])
