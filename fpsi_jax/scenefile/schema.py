@@ -123,7 +123,12 @@ table("tank", False, "An open-top tank [0, width] × [0, height] of fixed SPH bo
 
 table("obstacle", True, "A fixed body: SPH boundary particles filling it (on the tank's "
       "dx_boundary lattice) and DEM walls along its outline. Give `box`, `polygon` or "
-      "`polyline`.",
+      "`polyline`. In 2D it spans the channel's whole width: a pier or block standing on "
+      "the floor is a weir the water must overtop. Its force probe sums the water on its "
+      "particles and the discs on its walls, sampled every step (impacts show as spikes "
+      "of a few steps: filter over a few ms before comparing with a load cell); where it "
+      "stands on the floor, the water at its foot pushes both, and its vertical force "
+      "there is the floor's and its split of that corner, not a lift.",
       Key("name", "str", "", None, "label; a force probe's `body` can name it"),
       Key("box", "box", "m", None, "rectangle [x0, y0, x1, y1], filled"),
       Key("polygon", "polygon", "m", None, "polygon, filled"),
@@ -319,7 +324,9 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
           "spacing of x)"),
       Key("direction", "str", "", "+x", "front: which way", choices=("+x", "-x")),
       Key("x_range", "range", "m", None, "bed_profile: from x0 to x1"),
-      Key("bins", "int", "", 10, "bed_profile: columns", lo=1),
+      Key("bins", "int", "", 10, "bed_profile: columns of equal width between x0 and x1 "
+          "(components z0, z1, …: column k centred at x0 + (k + ½)(x1 − x0)/bins); each reads "
+          "the top of the highest grain in it, grains in suspension included", lo=1),
       Key("floor", "float", "m", 0.0, "water_level/bed_profile: value when dry or empty"),
       Key("reference", "str", "", None, "CSV to plot against (relative to the scene file; "
           "columns as `fpsi calibrate --data`)"))
