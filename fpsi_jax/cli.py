@@ -123,11 +123,14 @@ def cmd_run(args):
              + (" (compile included: every step was in the first chunk)"
                 if res.throughput_includes_compile else ""))
     left = f", {res.excluded} particles left through open sides" if res.excluded else ""
+    k = res.regrowth_chunks
+    regrew = (f"; {res.regrowth_s:.1f} s recompiling and redoing {k} chunk"
+              f"{'s' if k > 1 else ''} whose neighbour lists grew" if k else "")
     lists = ([f"{res.rebuilds} SPH"] if res.physics.has_fluid else []) + (
         [f"{res.dem_rebuilds} DEM"] if res.physics.has_solid else [])
     print(f"{scene.name}: {res.n_steps} steps of {float(res.params.dt):.4g} s{sub}, "
           f"{scene.n_particles} particles{left}, set-up and compilation {res.setup_s:.1f} s, "
-          f"stepping {res.wall_s:.1f} s (first chunk {res.compile_s:.1f} s), {speed}, "
+          f"stepping {res.wall_s:.1f} s (first chunk {res.compile_s:.1f} s{regrew}), {speed}, "
           f"{' and '.join(lists)} neighbour-list rebuilds")
     if out:
         extra = f" and {os.path.splitext(out)[0]}_probes.csv" if probes else ""

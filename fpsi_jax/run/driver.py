@@ -59,6 +59,8 @@ class Result:
     steps_run: int | None = None     # steps this call ran (n_steps less a resumed start)
     dem_rebuilds: int = 0            # of the DEM neighbour list
     setup_s: float = 0.0             # before the first chunk: lists, first rates, compile
+    regrowth_s: float = 0.0          # chunks after the first that grew a list (each growth
+    regrowth_chunks: int = 0         # a recompile and the chunk redone; wall_s includes it)
 
     @property
     def times(self) -> np.ndarray:
@@ -353,7 +355,7 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
     if output:
         writer = Writer(output, scene, phys, params, probes, run_info=run_info,
                         resume=ck is not None)
-    obs_chunks, reallocs, compile_s, first = [], 0, 0.0, 0
+    obs_chunks, reallocs, compile_s, first, regrowth_s, regrowth_chunks = [], 0, 0.0, 0, 0.0, 0
     t0 = time.perf_counter()
     bar = _Progress(scene.name, n_total, done) if progress else None
     stop = _StopSignals()
@@ -369,11 +371,15 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
                 jax.block_until_ready(new.status.bad)
                 return new, obs
 
+            t_chunk = time.perf_counter()
             c = run_until_fits(attempt, phys, state, dt, output=output)
             phys, state, reallocs = c.phys, c.end, reallocs + c.regrowths
             if not first:
                 compile_s = time.perf_counter() - t0   # compile + first chunk
                 first = n
+            elif c.regrowths:
+                regrowth_s += time.perf_counter() - t_chunk
+                regrowth_chunks += 1
             obs = jax.tree_util.tree_map(lambda a: a[:n], c.result)   # rows past n unused
             if observe is not None:
                 obs_chunks.append(jax.tree_util.tree_map(np.asarray, obs))
@@ -419,7 +425,8 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
                   compile_s=compile_s, setup_s=t0 - t_setup,
                   rebuilds=int(state.status.rebuilds), dem_rebuilds=int(state.status.dem_rebuilds),
                   reallocations=reallocs, observations=observations, output=output,
-                  first_chunk_steps=first, probes=probe_values,
+                  first_chunk_steps=first, probes=probe_values, regrowth_s=regrowth_s,
+                  regrowth_chunks=regrowth_chunks,
                   steps_run=done - (ck and int(ck.leaves[".step"]) or 0))
 
 

@@ -168,6 +168,7 @@ def test_overflow_is_redone_and_equals_a_large_allocation(tmp_path):
                      chunk_steps=20, rho_tolerance=0.9, skin=0.1)
     assert tight.reallocations >= 1          # the tight list did overflow ...
     assert roomy.reallocations == 0
+    assert roomy.regrowth_chunks == 0 and roomy.regrowth_s == 0.0
     grown = tight.physics.neighbors          # ... and grew to what its rebuilds counted
     assert grown.min_neighbors or grown.min_cell_capacity
     assert grown.extra_capacity == 0
@@ -184,6 +185,16 @@ def test_overflow_is_redone_and_equals_a_large_allocation(tmp_path):
                                np.asarray(roomy.state.fluid.x), rtol=0, atol=1e-6)
     np.testing.assert_allclose(np.asarray(tight.state.fluid.rho),
                                np.asarray(roomy.state.fluid.rho), rtol=1e-5)
+
+
+def test_chunks_that_regrow_after_the_first_are_timed_apart():
+    """The squeezed block in chunks of 4 steps outgrows its list after the first chunk:
+    that chunk's recompile and redo are counted and timed (the CLI's summary line says
+    so, as they are not stepping), within the stepping time after the first chunk."""
+    res = simulate(squeezed_block(), progress=False, capacity_multiplier=1.0,
+                   chunk_steps=4, rho_tolerance=0.9, skin=0.1)
+    assert res.reallocations >= 1 and res.regrowth_chunks == 1
+    assert 0.0 < res.regrowth_s <= res.wall_s - res.compile_s
 
 
 def test_wall_rows_too_narrow_are_widened_and_redone(monkeypatch):
