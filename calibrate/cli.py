@@ -22,6 +22,7 @@ from __future__ import annotations
 import inspect
 import json
 import os
+import shlex
 import sys
 
 from fpsi_jax.cases import overrides as ov
@@ -160,7 +161,8 @@ def run_file(args) -> int:
     stem = os.path.splitext(os.path.basename(args.case))[0]
     os.makedirs(args.out, exist_ok=True)
     js, png = os.path.join(args.out, f"{stem}.json"), os.path.join(args.out, f"{stem}.png")
-    rec["command"] = "fpsi calibrate " + " ".join(getattr(args, "argv", []) or [args.case])
+    rec["command"] = "fpsi calibrate " + shlex.join(getattr(args, "argv", [])
+                                                    or [args.case])
     with open(js, "w") as fh:
         json.dump(rec, fh, indent=1, default=float)
     fitted = ", ".join(f"{k} = {v:.4g}" for k, v in rec["fitted"].items())

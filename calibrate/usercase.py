@@ -402,6 +402,11 @@ def check_data(sf, s: Settings, probe):
     if not window[1] > window[0]:
         _data_fail(s.data, f"its times [{t[0]:.4g}, {t[-1]:.4g}] s lie outside the "
                        f"run's [0, {t_end:.4g}] s")
+    if s.window is None and float(t[-1]) > t_end * (1 + 1e-9):
+        late = int(np.sum(t > t_end * (1 + 1e-9)))
+        _data_fail(s.data, f"{late} of its {len(t)} samples lie after the run's end "
+                   f"(t up to {t[-1]:.6g} s, [scene] t_end = {t_end:.6g} s): lengthen the "
+                   "run, cut the file, or fit a --window inside the run")
     datafile.check_span(s.data, t, t_end, window)
     if s.holdout is not None:
         datafile.check_span(s.data, t, t_end, s.holdout)

@@ -266,7 +266,10 @@ def _plugins() -> dict:
 
 def main(argv=None):
     _xla.configure_cache()        # compiled programs on disk (FPSI_NO_COMPILE_CACHE=1: off)
-    args = make_parser().parse_args(argv)
+    given = list(sys.argv[1:] if argv is None else argv)
+    args = make_parser().parse_args(given)
+    # the subcommand's own arguments, as typed (records such as calibrate's JSON keep them)
+    args.argv = given[given.index(args.cmd) + 1:] if args.cmd in given else []
     commands = {"list": cmd_list, "run": cmd_run, "validate": cmd_validate}
     commands.update({name: mod.run for name, mod in _plugins().items()})
     try:

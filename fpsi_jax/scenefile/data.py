@@ -66,7 +66,9 @@ def read_csv(path: str):
                   "'name [unit]', e.g. 't [s]' or 'tip.ux [mm]'")
         name, unit = m.group(1).strip(), m.group(2).strip()
         if unit not in UNITS:
-            _fail(path, f"column {name!r}: unknown unit {unit!r}; known: "
+            hint = (" (forces are per metre of out-of-plane thickness here: N/m, kN/m)"
+                    if unit in ("N", "kN") else "")
+            _fail(path, f"column {name!r}: unknown unit {unit!r}{hint}; known: "
                   f"{', '.join(u for u in UNITS if u)}")
         si, f = UNITS[unit]
         names.append(name)
@@ -93,13 +95,17 @@ def read_csv(path: str):
 def match(path: str, probe, names=None, units=None, values=None):
     """(t, y (n, k), components): the columns of the data file at ``path`` that measure
     ``probe``'s components (``<probe>.<component>`` or ``<component>``), in SI, with the
-    component indices they fill. At least one column must match; units must agree."""
+    component indices they fill. At least one column must match; units must agree; a
+    column named for the probe must name one of its components."""
     if names is None:
         names, units, values = read_csv(path)
     comps, cols = [], []
     for k, (n, u) in enumerate(zip(names[1:], units[1:]), start=1):
         c = n.split(".", 1)[1] if n.startswith(probe.name + ".") else n
         if c not in probe.components:
+            if n.startswith(probe.name + "."):      # the probe's, a component it lacks
+                _fail(path, f"column {n!r}: probe {probe.name!r} ({probe.kind}) has "
+                      f"components {', '.join(probe.components)}")
             continue
         j = probe.components.index(c)
         if u != probe.units[j]:

@@ -411,7 +411,8 @@ CSV with a header row naming each column with its unit in brackets; lines starti
     0.04, 12.7, 0.84
 
 Units are converted to SI and must measure what the probe measures (mm for a displacement
-is fine, N is refused). Probe components: displacement `ux, uy` [m]; force `Fx, Fy` [N/m],
+is fine, N is refused: forces are per metre of thickness, N/m). A column named for the
+probe must name one of its components (`tip.uz` is refused, not skipped). Probe components: displacement `ux, uy` [m]; force `Fx, Fy` [N/m],
 `M` [N m/m] (per metre of thickness); pressure `p` [Pa]; water_level `level` [m]; front
 `x` [m]; bed_profile `z0, z1, …` [m]; broken_bonds `n` [-].
 
@@ -430,10 +431,11 @@ SI units; a positive quantity is fitted in log space):
   start), `dem.mu`, `bond.beta_bar`, …; `fpsi calibrate my_case.toml --fit Q` lists them.
 
 `--start name=value` sets a start value (default: the file's); `--window a,b` the fitted
-time span (default: the data's), `--holdout a,b` a span reported but not fitted. The run
-writes `<out>/<file>.json` (start, fitted values, Gauss–Newton standard errors, loss
-history, RMS per component on both windows, wall times) and `<out>/<file>.png` (measured
-against simulated at the start and fitted values, and the loss).
+time span (default: the data's, which must then end by `[scene] t_end`), `--holdout a,b`
+a span reported but not fitted. The run writes `<out>/<file>.json` (the command as typed,
+start, fitted values, Gauss–Newton standard errors, loss history, RMS per component on
+both windows, wall times) and `<out>/<file>.png` (measured against simulated at the start
+and fitted values, and the loss); `--out` defaults to `results/calibrate`.
 """
 
 

@@ -94,7 +94,17 @@ BAD = [
     ("unit of another dimension", ["--fit", "E"], "t [s], tip.ux [kPa]\n0.05, 1\n0.1, 2\n",
      ["measured.csv", "tip.ux"]),
     ("column of no probe component", ["--fit", "E"], "t [s], tip.rot [mm]\n0.05, 1\n0.1, 2\n",
+     ["measured.csv", "column 'tip.rot': probe 'tip' (displacement) has components ux, uy"]),
+    ("a misspelt component beside a good one", ["--fit", "E"],
+     "t [s], tip.ux [mm], tip.uz [mm]\n0.05, 1, 1\n0.1, 2, 2\n",
+     ["measured.csv", "column 'tip.uz': probe 'tip' (displacement) has components ux, uy"]),
+    ("no column of the probe", ["--fit", "E"], "t [s], gate.ux [mm]\n0.05, 1\n0.1, 2\n",
      ["measured.csv", "no column measures probe 'tip'", "tip.ux [m], tip.uy [m]"]),
+    ("samples after the run's end", ["--fit", "E"],
+     "t [s], tip.ux [mm]\n0.05, 1\n0.1, 2\n0.6, 3\n",
+     ["measured.csv", "1 of its 3 samples lie after the run's end", "--window"]),
+    ("a force in N", ["--fit", "E"], "t [s], tip.ux [N]\n0.05, 1\n0.1, 2\n",
+     ["measured.csv", "unknown unit 'N'", "per metre of out-of-plane thickness"]),
     ("data not a text file (an HDF5 output)", ["--fit", "E"], b"\x89HDF\r\n\x1a\n\x00\xff",
      ["measured.csv", "is not a text CSV file"]),
     ("no data file", ["--fit", "E", "--data", "missing.csv"], None,
@@ -134,6 +144,8 @@ def test_damping_fit_from_the_example_file_matches_the_single_mode_value(tmp_pat
                      "--quiet", "--steps", "8"])
     assert code == 0
     rec = json.loads((out / "cantilever_damping.json").read_text())
+    assert rec["command"] == ("fpsi calibrate " + str(work / "cantilever_damping.toml")
+                              + f" --out {out} --quiet --steps 8")    # as typed, to rerun
     assert (out / "cantilever_damping.png").stat().st_size > 10_000
     f_data = float(rec["target_report"]["fitted"]["frequency_ref"])
     c = rec["fitted"]["dem.damping"]
