@@ -651,7 +651,8 @@ def plot(case: UserCase, rec: dict, curves: dict, path: str, title: str = ""):
 
 
 def summary(rec: dict) -> str:
-    """One line per fitted quantity and per window: start → fitted ± error; RMS."""
+    """One line per fitted quantity and per window: start → fitted ± error; RMS; for a
+    free-vibration target, the data's and the model's frequency and damping ratio."""
     lines = []
     for q in rec["quantities"]:
         n = q["name"]
@@ -663,4 +664,11 @@ def summary(rec: dict) -> str:
         parts = [f"{label} " + ", ".join(f"{k} {v:.4g}" for k, v in vals.items())
                  for label, vals in by.items()]
         lines.append(f"RMS on {w} {span} s [SI]: " + "; ".join(parts))
+    report = rec.get("target_report") or {}
+    if "frequency_ref" in (report.get("fitted") or {}):        # a free-vibration target
+        def freq(r):
+            return f"f {r['frequency_hz']:.5g} Hz, ζ {r['damping_ratio']:.4g}"
+        lines.append(f"free vibration: data {report['fitted']['frequency_ref']:.5g} Hz, "
+                     f"ζ {report['fitted']['damping_ratio_ref']:.4g}; start "
+                     f"{freq(report['start'])}; fitted {freq(report['fitted'])}")
     return "\n".join(lines)

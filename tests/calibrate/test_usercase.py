@@ -156,3 +156,20 @@ def test_damping_fit_from_the_example_file_matches_the_single_mode_value(tmp_pat
     assert rms["fitted"]["uy"] < 0.2 * rms["start"]["uy"]
     assert np.isfinite(rec["std_error"]["dem.damping"])
     assert set(rec["wall_s"]) == {"setup", "fit"}
+
+
+def test_summary_of_a_free_vibration_fit_gives_the_frequencies_and_damping_ratios():
+    """The console summary of a vibration target says what was fitted: the data's and the
+    model's frequency and damping ratio, at the start and fitted."""
+    from calibrate import usercase as uc
+
+    def vib(f, z):
+        return {"frequency_hz": f, "damping_ratio": z, "frequency_ref": 11.5,
+                "damping_ratio_ref": 0.03}
+    rec = {"quantities": [{"name": "beam.E", "unit": "Pa"}], "start": {"beam.E": 2e7},
+           "fitted": {"beam.E": 1e7}, "std_error": {}, "rms": {},
+           "target_report": {"start": vib(16.4, 0.06), "fitted": vib(11.5, 0.031)}}
+    text = uc.summary(rec)
+    assert "beam.E: 2e+07 -> 1e+07 Pa" in text
+    assert "free vibration: data 11.5 Hz, ζ 0.03; start f 16.4 Hz, ζ 0.06; fitted f 11.5 Hz, " \
+           "ζ 0.031" in text
