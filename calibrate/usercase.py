@@ -560,13 +560,14 @@ def report(case: UserCase, res, progress=print) -> tuple[dict, dict]:
     windows = {"window": case.window}
     if case.holdout is not None:
         windows["holdout"] = case.holdout
-    for label, values in _curves(case, res).items():
+    for k, (label, values) in enumerate(_curves(case, res).items()):
         t0 = time.perf_counter()
         t, u = evaluate(case, values)
         curves[label] = (t, u)
-        if progress:
+        if progress:                # the first evaluation compiles the reporting rollout
             progress(f"forward run ({label}) to {case.t_report:.4g} s: "
-                     f"{time.perf_counter() - t0:.1f} s")
+                     f"{time.perf_counter() - t0:.1f} s" + (" (compile included)" if k == 0
+                                                             else ""))
         for w, span in windows.items():
             rms_table.setdefault(w, {})[label] = rms(case, t, u, span)
         n = pr.n_steps

@@ -161,7 +161,6 @@ def test_damping_fit_from_the_example_file_matches_the_single_mode_value(tmp_pat
 def test_summary_of_a_free_vibration_fit_gives_the_frequencies_and_damping_ratios():
     """The console summary of a vibration target says what was fitted: the data's and the
     model's frequency and damping ratio, at the start and fitted."""
-    from calibrate import usercase as uc
 
     def vib(f, z):
         return {"frequency_hz": f, "damping_ratio": z, "frequency_ref": 11.5,
