@@ -436,6 +436,12 @@ a span reported but not fitted. The run writes `<out>/<file>.json` (the command 
 start, fitted values, Gauss–Newton standard errors, loss history, RMS per component on
 both windows, wall times) and `<out>/<file>.png` (measured against simulated at the start
 and fitted values, and the loss); `--out` defaults to `results/calibrate`.
+
+The loss is the mean of squared residuals: for 'trajectory' (u_sim − u_data)/max|u_data|
+at every sample in the window, each component scaled by its largest measured value, so a
+loss of 10⁻⁴ is an RMS misfit of 1 % of the signal; for 'static' (ū_sim − ū_data)/|ū_data|
+of the window means; for 'vibration' log(f/f_data) and log(ζ/ζ_data). The RMS lines are
+in SI units (m for a displacement measured in mm).
 """
 
 
