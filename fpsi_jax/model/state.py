@@ -50,7 +50,15 @@ class SolidState:
     history aligned with the contact neighbour list (n × K, keyed by the pair: it is
     re-addressed on every rebuild), ``wall_shear`` the same for the walls (n × n_walls).
     ``t_out`` as the fluid's: the time a disc left through an open side (−1: in; None:
-    the scene has no open side)."""
+    the scene has no open side).
+
+    ``x_ref`` (n, 2) the positions at the start and ``u`` (n, 2) the displacement since
+    then: the drift updates u and sets x = x_ref + u, and the bonds read their stretch from
+    u (physics.bonds.bond_loads). In float32 a coordinate of 0.6 m is held to 6·10⁻⁸ m,
+    while a stiff bond's disc moves 10⁻⁷ m in a DEM step: drifting x itself rounded every
+    step's motion by up to half of it and the rounding, through springs of 10⁷ N/m per
+    metre, heated a standing bonded wall until its bonds cracked under its own weight. A
+    displacement of millimetres is held to 10⁻¹⁰ m."""
 
     x: Any
     v: Any
@@ -66,6 +74,13 @@ class SolidState:
     shear: Any
     wall_shear: Any
     t_out: Any = None
+    x_ref: Any = None
+    u: Any = None
+
+    def moved_to(self, x):
+        """The discs placed at ``x`` (n, 2), their displacement u = x − x_ref with them
+        (whoever moves discs other than the drift: parking, a test's set-up)."""
+        return self.replace(x=x, u=None if self.x_ref is None else x - self.x_ref)
 
 
 @pytree_dataclass

@@ -63,9 +63,24 @@ def rest_geometry(x, i, j):
     return d0, dx / d0[:, None]
 
 
-def bond_loads(bp, kind, x, theta, radius, i, j, d0, e0):
-    """Bond forces of every bond as if intact: (F̄_n, F̄_s, M̄, n, ℓ_A, ℓ_B, A, I, R̄)."""
-    dx = x[j] - x[i]
+def bond_axis(u, i, j, d0, e0):
+    """The axis x_B − x_A of each bond from its rest vector d0 e0 and the discs'
+    displacements ``u`` since the bond was made: d0 e0 + (u_B − u_A). Never from the
+    discs' positions: in float32 a coordinate of 0.6 m is held to 6·10⁻⁸ m, more than a
+    stiff bond stretches under its structure's weight, while the axis built this way is
+    held to the bond length's precision (10⁻⁹ m for 10 mm; model.state.SolidState).
+
+    (The stretch written without the cancellation of d − d0, (2 d0 e0·Δu + Δu·Δu)/(d +
+    d0), is exact to float32 round-off at any stretch, but a standing float32 wall
+    vibrated more with it: 1.11 against 0.60 kPa of largest bond tension in
+    tests/solver/test_displacement.py, 0.22 kPa in float64; docs/design.md.)"""
+    return d0[:, None] * e0 + (u[j] - u[i])
+
+
+def bond_loads(bp, kind, u, theta, radius, i, j, d0, e0):
+    """Bond forces of every bond as if intact: (F̄_n, F̄_s, M̄, n, ℓ_A, ℓ_B, A, I, R̄).
+    ``u`` (n, 2): the discs' displacements since the bonds were made (:func:`bond_axis`)."""
+    dx = bond_axis(u, i, j, d0, e0)
     d = jnp.sqrt(jnp.sum(dx * dx, axis=-1))
     n = dx / d[:, None]
     ra, rb = radius[i], radius[j]
@@ -100,20 +115,21 @@ def fracture(bp, sigma, tau, intact):
     return intact & ~tension & ~shear, mode
 
 
-def bond_forces(bp, kind, n_solid, x, theta, radius, i, j, d0, e0, intact):
-    """Forces and torques of the intact bonds on the discs, with fracture.
+def bond_forces(bp, kind, n_solid, u, theta, radius, i, j, d0, e0, intact):
+    """Forces and torques of the intact bonds on the discs, with fracture; ``u`` the
+    discs' displacements since the bonds were made (:func:`bond_axis`).
 
     Returns (force (n, 2), torque (n,), intact', mode of new breaks, F̄_n, F̄_s, M̄), the
     last three zero for broken bonds. A bond that breaks in this evaluation exerts nothing."""
-    fn, fs, m, n, la, lb, area, inertia, r_bar = bond_loads(bp, kind, x, theta, radius, i, j,
+    fn, fs, m, n, la, lb, area, inertia, r_bar = bond_loads(bp, kind, u, theta, radius, i, j,
                                                             d0, e0)
     sigma, tau = bond_stresses(bp, fn, fs, m, area, inertia, r_bar)
     alive, mode = fracture(bp, sigma, tau, intact)
-    w = alive.astype(x.dtype)
+    w = alive.astype(u.dtype)
     fn, fs, m = fn * w, fs * w, m * w
     t = perp(n)
     f_b = -fn[:, None] * n + fs[:, None] * t
-    force = jnp.zeros((n_solid, 2), x.dtype).at[j].add(f_b).at[i].add(-f_b)
-    torque = (jnp.zeros((n_solid,), x.dtype).at[j].add(m - fs * lb)
+    force = jnp.zeros((n_solid, 2), u.dtype).at[j].add(f_b).at[i].add(-f_b)
+    torque = (jnp.zeros((n_solid,), u.dtype).at[j].add(m - fs * lb)
               .at[i].add(-m - fs * la))
     return force, torque, alive, mode, fn, fs, m

@@ -84,7 +84,8 @@ def park_discs(phys: Physics, solid, bonds, t):
     t_out, out = leave(phys, solid.x, solid.t_out, t)
     spot = park_positions(phys.parking, phys.n_fluid, solid.x.shape[0], solid.x.dtype)
     o2 = out[:, None]
-    solid = solid.replace(x=jnp.where(o2, spot, solid.x), v=jnp.where(o2, 0.0, solid.v),
+    solid = solid.moved_to(jnp.where(o2, spot, solid.x))
+    solid = solid.replace(v=jnp.where(o2, 0.0, solid.v),
                           acc=jnp.where(o2, 0.0, solid.acc), omega=jnp.where(out, 0.0, solid.omega),
                           alpha=jnp.where(out, 0.0, solid.alpha), fixed=solid.fixed | out,
                           t_out=t_out)

@@ -238,7 +238,7 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
     if b is not None:
         with jax.named_scope("bonds"):
             fb, tb, alive, mode, fn, fs, m = bonds_law.bond_forces(
-                params.bond, phys.bond_section, phys.n_solid, x, s.theta, s.radius,
+                params.bond, phys.bond_section, phys.n_solid, s.u, s.theta, s.radius,
                 b.i, b.j, b.d0, b.e0, b.intact)
             new = b.intact & ~alive
             b = b.replace(intact=alive, fn=fn, fs=fs, m=m,
@@ -318,10 +318,10 @@ def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, w
     with jax.named_scope("step.solid_kick_drift"):
         v_half = s.v + 0.5 * dt * s.acc
         w_half = s.omega + 0.5 * dt * s.alpha
-        x_new = s.x + dt * v_half
+        u_new = s.u + dt * v_half          # the displacement, then x (SolidState)
         th_new = s.theta + dt * w_half
-    state = state.replace(t=t, solid=s.replace(x=x_new, theta=th_new, v=v_half,
-                                                omega=w_half))
+    state = state.replace(t=t, solid=s.replace(x=s.x_ref + u_new, u=u_new, theta=th_new,
+                                                v=v_half, omega=w_half))
     if check_list:
         state = _dem_list_update(phys, state)
     before = state.walls.reaction if phys.wall_reaction and state.walls is not None else None

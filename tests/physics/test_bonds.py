@@ -45,12 +45,31 @@ def one_bond(xb, theta=(0.0, 0.0), x0=None, bp=None, kind="slab", radius=(R, R),
     d0, e0 = bonds.rest_geometry(F(x0), i, j)
     bp = bp or BondParams(kn=KN, ks=KS)
     x = np.array([x0[0], xb], float) if np.ndim(xb) == 1 else np.asarray(xb, float)
-    out = bonds.bond_forces(bp, kind, 2, F(x), F(theta), F(radius), i, j, d0, e0,
+    out = bonds.bond_forces(bp, kind, 2, F(x - x0), F(theta), F(radius), i, j, d0, e0,
                             jnp.asarray([intact]))
     return [np.asarray(o) for o in out]
 
 
 # --- geometry ----------------------------------------------------------------------------
+def test_bond_axis_holds_a_float32_stretch_far_from_the_origin():
+    """A bond made at x = 0.6 m, B displaced by 10⁻⁷ m along it, all float32: F̄_n = k̄_n A u
+    = 1 N from the displacements (bond_axis), to the resolution of the 10 mm length d
+    (an ulp of 9·10⁻¹⁰ m, 1 % of this stretch). Read from the positions, the stretch is
+    what float32 keeps of 0.61 + 10⁻⁷ m: two ulps of 6·10⁻⁸ m, 19 % too much."""
+    f32 = jnp.float32
+    x0 = jnp.asarray([[0.6, 0.2], [0.6 + D0, 0.2]], f32)
+    i, j = jnp.asarray([0]), jnp.asarray([1])
+    d0, e0 = bonds.rest_geometry(x0, i, j)
+    u = jnp.asarray([[0.0, 0.0], [1e-7, 0.0]], f32)
+    fn, *_ = bonds.bond_loads(BondParams(kn=KN, ks=KS), "slab", u, jnp.zeros(2, f32),
+                              jnp.full(2, R, f32), i, j, d0, e0)
+    assert fn.dtype == f32
+    assert float(fn[0]) == pytest.approx(KN * AREA * 1e-7, rel=0.01)
+    x = x0 + u
+    from_positions = float(jnp.linalg.norm(x[1] - x[0]) - d0[0])
+    assert abs(from_positions / 1e-7 - 1.0) > 0.1
+
+
 def test_section_slab_and_circular():
     a, i = bonds.section("slab", 0.005, 2.0)
     assert float(a) == pytest.approx(0.02, rel=RTOL)                 # 2 R̄ t
@@ -254,11 +273,11 @@ def test_tension_break_without_moment_term(factor, breaks):
     u = 1e-4
     sigma = KN * u
     if factor == 1.0:
-        x = F([[0.1, 0.2], [0.1 + D0 + u, 0.2]])
+        disp = F([[0.0, 0.0], [u, 0.0]])
         i, j = jnp.asarray([0]), jnp.asarray([1])
         d0, e0 = bonds.rest_geometry(F([[0.1, 0.2], [0.1 + D0, 0.2]]), i, j)
         bp0 = BondParams(kn=KN, ks=KS, beta_bar=0.0)
-        fn, fs, m, _, _, _, a, ii, rb = bonds.bond_loads(bp0, "slab", x, F(0.0, 0.0), F(R, R),
+        fn, fs, m, _, _, _, a, ii, rb = bonds.bond_loads(bp0, "slab", disp, F(0.0, 0.0), F(R, R),
                                                           i, j, d0, e0)
         sigma = float(bonds.bond_stresses(bp0, fn, fs, m, a, ii, rb)[0][0])
         assert sigma == pytest.approx(KN * u, rel=1e-9)
@@ -329,11 +348,11 @@ def test_fracture_never_heals_and_reports_only_new_breaks():
 def test_grad_of_bond_force_wrt_kn():
     x0 = np.array([[0.1, 0.2], [0.1 + D0, 0.2]])
     d0, e0 = bonds.rest_geometry(F(x0), jnp.asarray([0]), jnp.asarray([1]))
-    x = F([[0.1, 0.2], [0.1 + D0 + 1e-5, 0.2 + 2e-6]])
+    disp = F([[0.0, 0.0], [1e-5, 2e-6]])
 
     def fx(kn):
         bp = BondParams(kn=kn, ks=KS)
-        f, *_ = bonds.bond_forces(bp, "slab", 2, x, F(1e-4, -2e-4), F(R, R),
+        f, *_ = bonds.bond_forces(bp, "slab", 2, disp, F(1e-4, -2e-4), F(R, R),
                                   jnp.asarray([0]), jnp.asarray([1]), d0, e0,
                                   jnp.asarray([True]))
         return f[1, 0]

@@ -127,7 +127,7 @@ def test_disc_forces_over_the_moving_rows_equal_all_rows():
     n = s.x.shape[0]
     d = 2.0 * float(np.max(np.asarray(s.radius)))
     x = s.x + A(rng.normal(0.0, 0.03 * d, (n, 2)))
-    st = st.replace(solid=s.replace(x=x, v=A(rng.normal(0.0, 0.1, (n, 2))),
+    st = st.replace(solid=s.moved_to(x).replace(v=A(rng.normal(0.0, 0.1, (n, 2))),
                                     omega=A(rng.normal(0.0, 5.0, n)),
                                     shear=A(rng.normal(0.0, 1e-6, s.shear.shape))))
     st = st.replace(solid_nbrs=st.solid_nbrs.update(x - jnp.asarray(phys.dem_neighbors.origin)))
@@ -280,7 +280,7 @@ def test_broken_bond_stays_broken_in_step():
     assert bool(st.bonds.intact[0]) and float(st.bonds.t_break[0]) == -1.0
     step = jax.jit(forward.step, static_argnums=0)
     s = st.solid
-    st = st.replace(solid=s.replace(x=s.x.at[1, 0].add(2e-3)))
+    st = st.replace(solid=s.moved_to(s.x.at[1, 0].add(2e-3)))
     st = step(phys, st, p)
     b = st.bonds
     assert not bool(b.intact[0]) and int(b.mode[0]) == 1
@@ -289,7 +289,7 @@ def test_broken_bond_stays_broken_in_step():
     # compress by 1e-4: contact only, k_n δ = 1e3 N (an intact bond would add k̄_n A δ)
     s = st.solid
     x = s.x.at[1, 0].set(s.x[0, 0] + D0 - 1e-4)
-    st = st.replace(solid=s.replace(x=x, v=jnp.zeros_like(s.v), acc=jnp.zeros_like(s.acc)))
+    st = st.replace(solid=s.moved_to(x).replace(v=jnp.zeros_like(s.v), acc=jnp.zeros_like(s.acc)))
     st = step(phys, st, p)
     m = float(sc.solid.mass[1])
     np.testing.assert_allclose(np.asarray(st.solid.acc)[1], [1.0e7 * 1e-4 / m, 0.0],
@@ -312,7 +312,7 @@ def test_intact_bond_records_loads_in_step():
     p = sc.params.as_arrays(jnp.float64)
     st = init.init_state(sc, phys, p)
     s = st.solid
-    st = st.replace(solid=s.replace(x=s.x.at[1, 0].add(-1e-4)))
+    st = st.replace(solid=s.moved_to(s.x.at[1, 0].add(-1e-4)))
     st = jax.jit(forward.step, static_argnums=0)(phys, st, p)
     assert bool(st.bonds.intact[0]) and int(st.bonds.mode[0]) == 0
     assert float(st.bonds.t_break[0]) == -1.0
@@ -694,7 +694,7 @@ def test_shared_pressure_does_the_work_the_mixture_continuity_stores(transport):
     # (a finite difference over 1e-7 s): the same forces leave 1.8 % of the scale unbalanced
     dt, other = 1e-7, dataclasses.replace(phys, fpi_pressure="archimedes")
     ahead = st.replace(fluid=f.replace(x=f.x + dt * f.v),
-                       solid=st.solid.replace(x=st.solid.x + dt * st.solid.v))
+                       solid=st.solid.moved_to(st.solid.x + dt * st.solid.v))
     new = stages.new_level(other, p, ahead, stages.sph_family(other, ahead), rho_c, dt)
     stored_other = float(np.sum(m * pres / rho ** 2 * (np.asarray(new.rho) - rho) / dt))
     assert abs(fluid_power + grain_power + stored_other) > 0.01 * scale
