@@ -168,7 +168,8 @@ def grow(phys: Physics, failed: State) -> Physics:
         phys = dataclasses.replace(phys, dem_list_substeps=True)
     if phys.has_solid and neighbors.overflowed(failed.solid_nbrs):
         phys = dataclasses.replace(phys, dem_neighbors=neighbors.grow(
-            phys.dem_neighbors, failed.solid_nbrs, np.asarray(failed.status.dem_need)))
+            phys.dem_neighbors, failed.solid_nbrs, np.asarray(failed.status.dem_need),
+            both=True))
     return phys
 
 

@@ -647,7 +647,20 @@ def capacity(nbrs: partition.NeighborList) -> int:
     return int(nbrs.idx.shape[1])
 
 
-def grow(cfg: NeighborConfig, nbrs: partition.NeighborList, need=(0, 0, 0)) -> NeighborConfig:
+#: what a regrowth gives the DEM list (with ``both``) over the need found, and
+#: :data:`WALL_REGROWTH` the wall rows' width: each regrowth is a recompile of the step
+#: (5–20 s for a coupled scene) and a redone chunk, while a slot more costs those rows ~1 %
+#: of a step. A breaking bonded wall hit by a dam break regrew five times in 0.5 s (69 s of
+#: its 84 s stepping): the wall rows' width 15 → 20 → 28 as its discs came to lie in the
+#: water, the DEM list's rows and cells 0.05 s apart (docs/performance.md, Regrowth). The
+#: width is measured on the first positions with room to spare, so a row past it is a
+#: structure coming apart, whose discs end up with fluid all round: it doubles.
+CHEAP_REGROWTH = 1.5
+WALL_REGROWTH = 2.0
+
+
+def grow(cfg: NeighborConfig, nbrs: partition.NeighborList, need=(0, 0, 0),
+         both: bool = False) -> NeighborConfig:
     """A config with room for what overflowed ``nbrs``.
 
     ``need`` is (the most neighbours of a particle, the most particles in a cell, the most
@@ -659,7 +672,10 @@ def grow(cfg: NeighborConfig, nbrs: partition.NeighborList, need=(0, 0, 0)) -> N
     had), as a fresh allocation gives, and nothing else grows: a cell's capacity sets
     the width of the rebuild's candidate pass (9 cells or 5 strips × the capacity;
     with ``cfg.strips`` the need and the capacity are a strip's), the rows' that of
-    every pair pass. Without a need, or for a
+    every pair pass. The wall rows' width gets :data:`WALL_REGROWTH` times its need.
+    ``both`` (the DEM list of a few hundred discs, whose sums cost next to nothing per
+    slot): rows and cells both grow, by :data:`CHEAP_REGROWTH` times their need, whichever
+    overflowed. Without a need, or for a
     list without a cell list (jax-md's O(N²) search, whose allocation knows only
     ``extra_capacity``), every cell and row gets ~50 % more room."""
     need = tuple(int(v) for v in need) + (0,) * (3 - len(need))
@@ -668,24 +684,28 @@ def grow(cfg: NeighborConfig, nbrs: partition.NeighborList, need=(0, 0, 0)) -> N
     # hold every neighbour up to K, so count them
     wall_need = max(wall_need, _wall_count(cfg, nbrs.idx, nbrs.idx.shape[0]))
     code = int(nbrs.error.code)
-    mult = cfg.capacity_multiplier
+    mult = CHEAP_REGROWTH if both else cfg.capacity_multiplier
     wall_over = bool(cfg.wall_width) and wall_need > cfg.wall_width
     rows_over = bool(code & int(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW)) and (
         rows_need > capacity(nbrs) or not wall_over)
     cells_over = bool(code & int(partition.PartitionErrorCode.CELL_LIST_OVERFLOW))
+    if both and (rows_over or cells_over):
+        rows_over = cells_over = True
     if wall_over:
         cfg = dataclasses.replace(cfg, wall_width=max(cfg.wall_width + 1,
-                                                      int(np.ceil(wall_need * mult))))
+                                                      int(np.ceil(wall_need * WALL_REGROWTH))))
         if not (rows_over or cells_over):
             return cfg                # only the wall rows' width ran out
     if rows_need <= 0 or cells_need <= 0 or nbrs.cell_list_fn is None:
         extra = cfg.extra_capacity + max(8, capacity(nbrs) // 2)
         return dataclasses.replace(cfg, extra_capacity=int(extra))
     if rows_over:
-        rows = max(capacity(nbrs) + 1, int(np.ceil(rows_need * mult)), cfg.min_neighbors)
+        rows = max(capacity(nbrs) + (1 if rows_need > capacity(nbrs) or not both else 0),
+                   int(np.ceil(rows_need * mult)), cfg.min_neighbors)
         cfg = dataclasses.replace(cfg, min_neighbors=rows)
     if cells_over:
-        cells = max(int(nbrs.cell_list_capacity) + 1,
+        cells = max(int(nbrs.cell_list_capacity) + (1 if cells_need > nbrs.cell_list_capacity
+                                                    or not both else 0),
                     int(np.ceil(cells_need * (cfg.cell_multiplier or mult))),
                     cfg.min_cell_capacity)
         cfg = dataclasses.replace(cfg, min_cell_capacity=cells)

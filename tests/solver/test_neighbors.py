@@ -212,6 +212,12 @@ def test_grow_after_a_cell_overflow_grows_the_cells_to_their_need():
     assert neighbors.grow(wide, over, need).min_cell_capacity == 2 * fullest
     blind = neighbors.grow(cfg, over, (0, 0))
     assert blind.extra_capacity == cfg.extra_capacity + max(8, neighbors.capacity(nbrs) // 2)
+    # the DEM list (both=True): rows and cells grow together, to 1.5× their need, so the
+    # rows' overflow that follows a cells' one does not cost a second recompile
+    dem = neighbors.grow(cfg, over, need, both=True)
+    assert dem.min_cell_capacity == int(np.ceil(fullest * neighbors.CHEAP_REGROWTH))
+    assert dem.min_neighbors == max(neighbors.capacity(nbrs),
+                                    int(np.ceil(int(need[0]) * neighbors.CHEAP_REGROWTH)))
 
 
 def test_update_rebuilds_only_past_half_the_skin():
@@ -476,7 +482,7 @@ def test_wall_rows_are_read_at_the_width_setup_measured():
 def test_a_wall_row_past_its_width_overflows_and_grow_widens_only_it():
     """A width one short of the widest boundary row: the allocation and a rebuild flag a
     neighbour overflow, the rebuild's need[2] is that row's count, and grow widens the
-    wall rows to need × multiplier while K and the cells stay as they were."""
+    wall rows to need × WALL_REGROWTH while K and the cells stay as they were."""
     import dataclasses
     import jax.numpy as jnp
     from jax_md import partition
@@ -493,7 +499,7 @@ def test_a_wall_row_past_its_width_overflows_and_grow_widens_only_it():
     assert int(over.error.code) == int(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW)
     assert int(need[2]) == most and int(need[0]) <= neighbors.capacity(nbrs)
     for grown in (neighbors.grow(tight, over, need), neighbors.grow(tight, alloc)):
-        assert grown.wall_width == int(np.ceil(most * cfg.capacity_multiplier))
+        assert grown.wall_width == int(np.ceil(most * neighbors.WALL_REGROWTH))
         assert (grown.min_neighbors, grown.min_cell_capacity, grown.extra_capacity) == (
             cfg.min_neighbors, cfg.min_cell_capacity, cfg.extra_capacity)
         fits = neighbors.allocate(grown, x)
