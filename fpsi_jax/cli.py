@@ -93,8 +93,9 @@ def cmd_run(args):
         raise ParameterError("--unsafe-dt needs --dt")
     if args.dt is not None:
         number("--dt", args.dt, 0.0, None, lo_open=True)
-    if every is not None:
-        number("--every", every, 0.0, t_end, lo_open=True)
+    if every is not None:       # named as the user gave it: an option or the scene file's key
+        number("--every" if args.every is not None else f"[output] every of {args.scene}",
+               every, 0.0, t_end, lo_open=True)
     _, params = setup(scene, args.dt, unsafe_dt=unsafe, **phys)  # every check before compiling
     check_steps(t_end, float(params.dt))
     info = {"scene": args.scene, "set": args.set or [], "t_end": t_end, "every": every,

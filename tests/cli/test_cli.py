@@ -1,5 +1,6 @@
 """CLI: bad input is one line naming the problem, exit code 2, nothing written."""
 import json
+import os
 
 import pytest
 
@@ -27,6 +28,23 @@ def test_bad_input_exits_2_with_one_line(argv, word, tmp_path, capsys):
     assert rc == 2
     assert len(err.splitlines()) == 1 and word in err
     assert not out.exists()
+
+
+def test_a_scene_files_frame_interval_past_a_shortened_run_names_the_files_key(tmp_path,
+                                                                               capsys):
+    """``--t-end`` shorter than the file's ``[output] every``: the one line names that key
+    (the user never typed ``--every``)."""
+    path = tmp_path / "post.toml"
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    text = open(os.path.join(root, "examples", "dam_break_on_post.toml")).read()
+    assert "[output]" not in text
+    path.write_text(text + "\n[output]\nevery = 0.01\n")
+    out = tmp_path / "x.h5"
+    rc = cli.main(["run", str(path), "--t-end", "0.001", "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and not out.exists()
+    assert err.splitlines() == [f"error: [output] every of {path} = 0.01 is out of range; "
+                                "allowed (0, 0.001]"]
 
 
 def test_list_names_scenes_and_cases(capsys):
