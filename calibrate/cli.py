@@ -26,6 +26,7 @@ import shlex
 import sys
 
 from fpsi_jax.cases import overrides as ov
+from fpsi_jax.cli import set_pairs
 from fpsi_jax.model.errors import ParameterError, SimulationError, fmt, number
 
 from . import cases
@@ -144,7 +145,7 @@ def run_file(args) -> int:
     from fpsi_jax import scenefile
     from . import usercase as uc
     sf = scenefile.load(args.case)
-    physics = ov.apply(sf.scene, ov.parse_pairs(args.set), f"scene file {args.case!r}")
+    physics = ov.apply(sf.scene, set_pairs(args.set), f"scene file {args.case!r}")
     s = uc.settings(sf, data=args.data, fit=args.fit, probe=args.probe, window=args.window,
                     holdout=args.holdout, target=args.target, start=args.start,
                     steps=args.steps, optimizer=args.optimizer, jacobian=args.jacobian)
@@ -175,7 +176,7 @@ def run_file(args) -> int:
 # --- a ready-made case --------------------------------------------------------------------
 def run_case(args) -> int:
     builder = cases.get(args.case)
-    kw = ov.parse_pairs(args.set)
+    kw = set_pairs(args.set)
     sig = inspect.signature(builder).parameters
     allowed = [n for n, q in sig.items() if q.kind == q.KEYWORD_ONLY]
     if any(q.kind == q.VAR_KEYWORD for q in sig.values()):      # the rest go to the scene

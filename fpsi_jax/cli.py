@@ -29,6 +29,26 @@ def cmd_list(args):
     return 0
 
 
+def set_pairs(pairs) -> dict:
+    """``--set key=value`` pairs (cases.overrides.parse_pairs); a value written with a unit,
+    as a scene file takes it ("500 kPa"), is refused with its SI number: --set values
+    are SI numbers, and the key alone does not say what it measures."""
+    from .cases import overrides as ov
+    from .scenefile.reader import QUANTITY_UNITS
+    out = ov.parse_pairs(pairs)
+    for key, value in out.items():
+        parts = value.split(None, 1) if isinstance(value, str) else []
+        if len(parts) == 2 and parts[1].strip() in QUANTITY_UNITS:
+            try:
+                si = float(parts[0]) * QUANTITY_UNITS[parts[1].strip()][1]
+            except ValueError:
+                continue
+            unit = QUANTITY_UNITS[parts[1].strip()][0]
+            raise ParameterError(f"--set {key} = {value!r}: --set takes SI numbers without "
+                                 f"units; write {key}={si:g} (in {unit})")
+    return out
+
+
 def is_scene_file(name: str) -> bool:
     return name.lower().endswith(".toml")
 
@@ -71,13 +91,13 @@ def cmd_run(args):
         from . import scenefile
         case = scenefile.load(args.scene)
         scene, probes = case.scene, case.probes
-        phys = ov.apply(scene, ov.parse_pairs(args.set), f"scene file {args.scene!r}")
+        phys = ov.apply(scene, set_pairs(args.set), f"scene file {args.scene!r}")
         out = args.out or case.output["file"] or f"results/{scene.name}.h5"
         every = args.every if args.every is not None else case.output["every"]
         want_plot = args.plot or case.output["plot"]
         observe = None
     else:
-        scene, phys = ov.build(args.scene, ov.parse_pairs(args.set))
+        scene, phys = ov.build(args.scene, set_pairs(args.set))
         out, every, want_plot, probes = args.out, args.every, args.plot, None
         observer = cases.OBSERVERS.get(scene.name)
         observe = observer(scene) if observer is not None else None
@@ -190,7 +210,7 @@ def cmd_validate(args):
     from .run import io
     if args.json:
         io.check_output(args.json, kind="json")          # before the cases run
-    recs = validate.run(args.cases, quick=args.quick, overrides=ov.parse_pairs(args.set))
+    recs = validate.run(args.cases, quick=args.quick, overrides=set_pairs(args.set))
     print(validate.format_table(recs))
     if args.json:
         os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)

@@ -20,6 +20,8 @@ from fpsi_jax.run import io
     (["run", "dam_break", "--unsafe-dt"], "--unsafe-dt needs --dt"),
     (["run", "dam_break", "--dt", "-1", "--unsafe-dt"], "--dt = -1 is out of range"),
     (["validate", "nope"], "unknown validation case 'nope'"),
+    (["run", "dam_break", "--set", "dx=5 mm"],
+     "--set dx = '5 mm': --set takes SI numbers without units; write dx=0.005 (in m)"),
 ])
 def test_bad_input_exits_2_with_one_line(argv, word, tmp_path, capsys):
     out = tmp_path / "x.h5"
