@@ -24,6 +24,7 @@ def plot_probes(case, res, png: str) -> list[str]:
     t = res.times
     for ax, p in zip(axes[0], probes):
         v = np.asarray(res.probes[p.name], float)
+        other = None                      # a right-hand axis for a second unit
         if p.kind == "bed_profile":
             xc = np.asarray(p.spec["x_centres"])
             ax.step(xc, v[0], where="mid", color="0.5", label="start")
@@ -31,10 +32,20 @@ def plot_probes(case, res, png: str) -> list[str]:
             ax.set_xlabel("x [m]")
             ax.set_ylabel("bed top [m]")
         else:
+            # components in another unit than the first (a force probe's moment) on a
+            # right-hand axis of their own; a count (broken bonds) from 0 in whole steps
             for k, (c, u) in enumerate(zip(p.components, p.units)):
-                ax.plot(t, v[:, k], lw=1.5, label=f"{c} [{u}]")
+                if u != p.units[0] and other is None:
+                    other = ax.twinx()
+                    other.set_ylabel(f"{p.name} [{u}]")
+                on = ax if u == p.units[0] else other
+                on.plot(t, v[:, k], lw=1.5, color=f"C{k}", label=f"{c} [{u}]")
             ax.set_xlabel("t [s]")
-            ax.set_ylabel(f"{p.name} [{', '.join(sorted(set(p.units)))}]")
+            ax.set_ylabel(f"{p.name} [{p.units[0]}]")
+            if p.kind == "broken_bonds":
+                from matplotlib.ticker import MaxNLocator
+                ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+                ax.set_ylim(bottom=0, top=max(1.0, 1.05 * float(np.max(v, initial=0.0))))
         ref = case.references.get(p.name)
         if ref is not None and p.kind != "bed_profile":
             tr, yr, comps = data.match(ref, p)
@@ -49,7 +60,11 @@ def plot_probes(case, res, png: str) -> list[str]:
                                  f"{rms:.4g} {p.units[k]} over {int(inside.sum())} samples")
         ax.set_title(f"{p.name} ({p.kind})")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+        handles, names = ax.get_legend_handles_labels()
+        if other is not None:
+            more = other.get_legend_handles_labels()
+            handles, names = handles + more[0], names + more[1]
+        ax.legend(handles, names, fontsize=7)
     fig.suptitle(case.scene.name)
     fig.tight_layout()
     fig.savefig(png, dpi=120)
