@@ -1,4 +1,4 @@
-"""A dam break on an elastic post, built from the public builders (README, "Your own scene")."""
+"""A dam break on an elastic post, built from the public builders (README, "Your own case")."""
 import numpy as np
 
 from fpsi_jax import build

@@ -135,11 +135,22 @@ def bonded_body(x, d, E, nu, rho, *, kind="square", thickness=1.0, plane_strain=
                      kn=k["kn"], ks=k["ks"])
 
 
-def bonded_rectangle(x0, y0, width, height, d, E, nu, rho, **kw) -> Structure:
-    """A bonded plate or beam [x0, x0+width] × [y0, y0+height] of discs ``d`` (square packing
-    by default): :func:`bonded_body` over :func:`packing`."""
-    return bonded_body(packing(x0, y0, width, height, d, kw.get("kind", "square")), d, E, nu,
-                       rho, **kw)
+def bonded_rectangle(x0, y0, width, height, d, E, nu, rho, *, kind="square", thickness=1.0,
+                     plane_strain=False, contact_fraction=0.01, sigma_c=1.0e30,
+                     tau_c=1.0e30, structure=True) -> Structure:
+    """A bonded plate or beam [x0, x0+width] × [y0, y0+height] of discs ``d``: :func:`packing`
+    of ``kind`` ('square' by default here; :func:`packing`'s own default is 'hex') glued by
+    :func:`bonded_body`, whose keywords these are.
+
+    What the body then needs is set on the returned ``Structure``: clamped discs with
+    :func:`clamp`, prescribed motion with :func:`move`, a load as forces per disc [N per
+    metre of thickness] in ``structure.solid.f_ext`` (ramped in over
+    ``DemParams.load_ramp`` s when that is set, applied at once otherwise); gravity is the
+    scene's, ``Params(gravity=…)``."""
+    return bonded_body(packing(x0, y0, width, height, d, kind), d, E, nu, rho, kind=kind,
+                       thickness=thickness, plane_strain=plane_strain,
+                       contact_fraction=contact_fraction, sigma_c=sigma_c, tau_c=tau_c,
+                       structure=structure)
 
 
 def clamp(solid: SolidBlock, region) -> np.ndarray:

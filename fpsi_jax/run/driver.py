@@ -292,7 +292,9 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
              unsafe_dt: bool = False, probes=None, resume: str | None = None,
              overwrite: bool = False, run_info: dict | None = None,
              **physics_overrides) -> Result:
-    """Run ``scene`` to ``t_end`` (default scene.t_end) in compiled chunks.
+    """Run ``scene`` to ``t_end`` (default scene.t_end) in compiled chunks. Runs on the host
+    (chunks, list regrowth, checks, output), so it is not differentiable: ``jax.grad``
+    goes through :func:`fpsi_jax.solver.rollout` (README, Quickstart: Python).
 
     output      HDF5 path (an .xdmf sidecar is written next to it); None: no file. An
                 existing file is refused unless ``overwrite`` (and only if fpsi-jax wrote it)
