@@ -253,6 +253,21 @@ def raise_if_unstable(status, dt: float, output: str | None = None,
                           voidage=voidage)
 
 
+def check_rollout(end: State, params: Params) -> None:
+    """What :func:`simulate` checks after every chunk, for the end state of a
+    :func:`fpsi_jax.solver.rollout` (outside ``jax.grad``/``jit``, on concrete values):
+    :class:`SimulationError` (step, time, particle, quantity) when a particle went bad,
+    RuntimeError when a neighbour list overflowed (some pairs were left out from the
+    step it names on, so the rollout is not the model's; ``simulate`` grows the list and
+    redoes the chunk)."""
+    st = end.status
+    raise_if_unstable(st, float(params.dt))
+    if bool(st.overflow):
+        raise RuntimeError(f"a neighbour list overflowed at step {int(st.redo_step)} of this "
+                           "rollout: pairs were left out from there on; allocate the lists "
+                           "with more room or run it with fpsi_jax.run.simulate")
+
+
 @dataclass
 class Chunk:
     """A chunk that ran with every pair: the Physics and start State it finally used (grown

@@ -54,9 +54,9 @@ def rollout(phys: Physics, state: State, params: Params, n_steps: int,
     nothing is checked or redone: a list that ran out of room, a step past the stability
     bound or a blow-up carry on silently. Test the end state's ``status`` (``bad``: a
     non-finite or out-of-band value, with ``step`` the first such step; ``overflow``: a
-    list too small) before using what it returns; :func:`fpsi_jax.run.simulate` does
-    this, grows the lists and redoes the chunk, but runs on the host and is not
-    differentiable (differentiate this function).
+    list too small) before using what it returns (:func:`fpsi_jax.run.check_rollout`);
+    :func:`fpsi_jax.run.simulate` does this, grows the lists and redoes the chunk, but
+    runs on the host and is not differentiable (differentiate this function).
     """
 
     def run(state, observe):

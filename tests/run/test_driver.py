@@ -262,6 +262,27 @@ def test_last_short_chunk_reuses_the_compiled_chunk_and_equals_a_rollout(tiny_ta
     np.testing.assert_array_equal(np.asarray(o_full)[:4], np.asarray(o_ref))
 
 
+def test_check_rollout_says_what_simulate_would_have_refused(tiny_tank):
+    """A rollout checks nothing: check_rollout passes a good one, names the step and
+    particle of one run at 30 times the stable step, and refuses one whose list overflowed."""
+    phys, params = setup(tiny_tank)
+    p = params.as_arrays(jnp.float32)
+    st = init.init_state(tiny_tank, phys, p)
+    run = jax.jit(forward.rollout, static_argnums=(0, 3))
+    good, _ = run(phys, st, p, 20)
+    driver.check_rollout(good, p)
+    fast = p.replace(dt=30.0 * p.dt)
+    bad, _ = run(phys, st, fast, 200)
+    assert bool(bad.status.bad)
+    with pytest.raises(SimulationError) as e:
+        driver.check_rollout(bad, fast)
+    assert e.value.step == int(bad.status.step) and e.value.step <= 200
+    cut = good.replace(status=good.status.replace(overflow=jnp.asarray(True),
+                                                  redo_step=jnp.asarray(12, jnp.int32)))
+    with pytest.raises(RuntimeError, match="overflowed at step 12"):
+        driver.check_rollout(cut, p)
+
+
 def test_the_chunk_compiled_beside_the_set_up_is_the_one_the_run_uses(tiny_tank):
     """simulate compiles its chunk in a second thread while the first rates are evaluated
     (driver.first_state ``beside``): the program compiled there is the one the chunks then
