@@ -106,6 +106,12 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
     scene.validate()
     limits.check(scene.n_particles, f"scene {scene.name!r}")
     phys = Physics.for_scene(scene, **physics_overrides)
+    # JAX's x64 flag is process-wide: set it to this run's precision both ways, before the
+    # step is derived (its bounds are JAX sums: a float32 scene set up after a float64 run
+    # got a step 3e-9 different, and a marginal run went another way), and so that a
+    # float32 run after a float64 one (fpsi validate runs every case in one process) is not
+    # traced with x64 on, where weakly typed constants promote parts of the step to float64
+    jax.config.update("jax_enable_x64", bool(phys.x64))
     params = (params or scene.params)
     opts = {**scene.options, **physics_overrides}
     given = opts.get("dem_substeps") is not None
@@ -127,10 +133,6 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
         raise ParameterError(f"dt = {dt} out of range; allowed (0, inf) with unsafe_dt")
     phys = dataclasses.replace(phys, dem_substeps=n_sub)
     params = params.replace(dt=float(dt)).validate()
-    # JAX's x64 flag is process-wide: set it to this run's precision both ways, so a float32
-    # run after a float64 one (fpsi validate runs every case in one process) is not traced
-    # with x64 on, where weakly typed constants promote parts of the step to float64
-    jax.config.update("jax_enable_x64", bool(phys.x64))
     return init.fit_wall_width(scene, phys), params
 
 

@@ -262,6 +262,21 @@ def test_last_short_chunk_reuses_the_compiled_chunk_and_equals_a_rollout(tiny_ta
     np.testing.assert_array_equal(np.asarray(o_full)[:4], np.asarray(o_ref))
 
 
+def test_setup_derives_the_same_step_whatever_precision_ran_before():
+    """JAX's x64 flag is process-wide and a float64 run leaves it on: setup sets it to the
+    run's precision before deriving the step, so a float32 scene gets the same Δt either
+    way (it differed by 3e-9 relative, and the stale-list test below then pushed its grain
+    through a wall in one worker of the suite and not in another)."""
+    from ..small_scenes import grain_scene
+    sc = grain_scene(x64=False)
+    dts = []
+    for before in (False, True):
+        jax.config.update("jax_enable_x64", before)
+        dts.append(float(setup(sc)[1].dt))
+        assert not jax.config.jax_enable_x64
+    assert dts[0] == dts[1]
+
+
 def test_check_rollout_says_what_simulate_would_have_refused(tiny_tank):
     """A rollout checks nothing: check_rollout passes a good one, names the step and
     particle of one run at 30 times the stable step, and refuses one whose list overflowed."""
