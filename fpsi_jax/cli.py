@@ -39,11 +39,11 @@ def set_pairs(pairs) -> dict:
     for key, value in out.items():
         parts = value.split(None, 1) if isinstance(value, str) else []
         if len(parts) == 2 and parts[1].strip() in QUANTITY_UNITS:
+            unit, factor = QUANTITY_UNITS[parts[1].strip()]
             try:
-                si = float(parts[0]) * QUANTITY_UNITS[parts[1].strip()][1]
+                si = float(parts[0]) * factor
             except ValueError:
                 continue
-            unit = QUANTITY_UNITS[parts[1].strip()][0]
             raise ParameterError(f"--set {key} = {value!r}: --set takes SI numbers without "
                                  f"units; write {key}={si:g} (in {unit})")
     return out
