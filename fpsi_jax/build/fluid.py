@@ -7,6 +7,7 @@ density of the Tait EOS, so nothing moves at t = 0.
 """
 from __future__ import annotations
 
+import jax
 import numpy as np
 
 from ..model.errors import check_positive
@@ -17,6 +18,15 @@ from ..physics.eos import density
 from .geometry import fit_spacing, lattice, polygon_lattice  # noqa: F401  (re-exported)
 
 G = 9.81   # |g| [m/s²]; Params.gravity is (0, −G) unless a scene says otherwise
+
+
+def in_float64(f, *args):
+    """``f(*args)`` computed in float64 as a NumPy array, whatever JAX's process-wide x64 flag
+    says when the scene is built: a builder that calls the step's own JAX functions (the
+    Tait inverse, the grains' voidage) gives the same scene in every process, float32 runs
+    and float64 runs alike (each run casts it to its precision)."""
+    with jax.enable_x64(True):
+        return np.asarray(f(*args), float)
 
 
 def sound_speed(v_max: float, factor: float = 10.0) -> float:
@@ -33,7 +43,7 @@ def hydrostatic_fluid(x, rho0, c0, gamma, surface_y, g=G, dx=None, h=None):
     """Fluid block at rest with hydrostatic density ρ(P = ρ0 g (H − y)) and mass ρ0 dx²."""
     check_positive(rho0=rho0, c0=c0, gamma=gamma)
     p = rho0 * g * np.maximum(surface_y - x[:, 1], 0.0)
-    rho = np.array(density(p, rho0, c0, gamma))
+    rho = in_float64(density, p, rho0, c0, gamma)
     n = x.shape[0]
     return FluidBlock(x=x, v=np.zeros_like(x), rho=rho, mass=np.full(n, rho0 * dx * dx),
                       h=np.full(n, h))
@@ -77,8 +87,8 @@ def fluid_among_grains(fluid, x_grain, r_grain, voidage, eps_floor=0.0, walls=No
     at rest. ``walls``: the scene's DEM walls (a WallBlock) when the step counts the grains'
     wall images in the voidage (Physics.wall_images, fpi.wall_images)."""
     w = None if walls is None else (walls.a, walls.b, walls.sides())
-    eps = np.asarray(fpi.voidage_at(kernels.get("wendland"), fluid.x, fluid.h, x_grain,
-                                    np.pi * np.asarray(r_grain) ** 2, voidage, w), float)
+    eps = in_float64(fpi.voidage_at, kernels.get("wendland"), fluid.x, fluid.h, x_grain,
+                     np.pi * np.asarray(r_grain) ** 2, voidage, w)
     eps = np.maximum(eps, eps_floor)
     fluid.mass = fluid.mass * eps
     return fluid

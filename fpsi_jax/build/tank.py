@@ -15,6 +15,7 @@ import numpy as np
 from ..model.errors import check_positive
 from ..model.scene import BoundaryBlock, WallBlock
 from ..physics.eos import density
+from .fluid import in_float64
 from .geometry import box_walls, fit_spacing, tank_walls
 
 
@@ -27,7 +28,7 @@ def boundary_block(xb, rho0, dxb, h, p=None, c0=None, gamma=7.0):
     """Boundary block: mass ρ0 dxb², pressure ``p`` (default 0) and the matching density."""
     n = xb.shape[0]
     p = np.zeros(n) if p is None else np.asarray(p, float)
-    rho = np.full(n, rho0) if c0 is None else np.array(density(p, rho0, c0, gamma))
+    rho = np.full(n, rho0) if c0 is None else in_float64(density, p, rho0, c0, gamma)
     return BoundaryBlock(x=xb, rho=rho, p=p, mass=np.full(n, rho0 * dxb * dxb),
                          h=np.full(n, h))
 

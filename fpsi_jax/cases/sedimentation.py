@@ -9,6 +9,7 @@ import numpy as np
 
 from ..build import (check_positive, dam_speed, disc_block, hydrostatic_fluid, lattice,
                      sound_speed, sph_params, tank)
+from ..build.fluid import in_float64
 from ..model.errors import ParameterError
 from ..model.options import Drag, choose
 from ..model.params import DemParams, FpiParams, Params
@@ -107,7 +108,7 @@ def terminal_slip(eps, rho_p, rho_f, d, mu, g, law="sphere"):
     law = choose(Drag, "drag", law)
 
     def excess(s):
-        beta = float(fpi.interphase_beta(eps, s, rho_f, d, mu, law))
+        beta = float(in_float64(fpi.interphase_beta, eps, s, rho_f, d, mu, law))
         return (rho_p - rho_f) * g - beta / (1 - eps) * s
     lo, hi = 0.0, 1.0
     while excess(hi) > 0:

@@ -150,3 +150,32 @@ def test_strip_ends_carry_half_a_cell():
     assert blk.mass.sum() == pytest.approx(0.4365625, rel=1e-12)
     ends = (x[:, 0] == 0.0) | (np.abs(x[:, 0] - L) < 1e-12)
     np.testing.assert_allclose(blk.inertia[ends], 0.5 * blk.mass[ends] * (d / 2) ** 2)
+
+
+def test_a_scene_is_built_the_same_whatever_precision_jax_is_in():
+    # the builders call the step's own JAX functions (the Tait inverse, the grains' voidage):
+    # they compute in float64 whatever JAX's process-wide x64 flag says, so a scene does not
+    # depend on what ran before it in the process
+    import jax
+
+    def built():
+        fluid = build.fluid_rectangle(0.0, 0.0, 0.04, 0.03, 0.002, 1000.0, 20.0, 0.003)
+        grains = build.grain_bed(0.0, 0.0, 0.04, 0.01, 0.004, 2650.0)
+        fluid = build.fluid_among_grains(fluid, grains.x, grains.radius, "area")
+        wall = build.boundary_block(fluid.x[:5], 1000.0, 0.002, 0.003,
+                                    p=np.linspace(0.0, 300.0, 5), c0=20.0)
+        return fluid.rho, fluid.mass, wall.rho
+
+    prev = jax.config.jax_enable_x64
+    try:
+        jax.config.update("jax_enable_x64", False)
+        off = built()
+        jax.config.update("jax_enable_x64", True)
+        on = built()
+    finally:
+        jax.config.update("jax_enable_x64", prev)
+    for a, b in zip(off, on):
+        assert a.dtype == np.float64 and np.array_equal(a, b)
+    # and in float64 indeed: the hydrostatic density at 300 Pa to 1e-12 (Tait inverse by hand)
+    b_tait = 20.0 ** 2 * 1000.0 / 7.0
+    assert on[2][-1] == pytest.approx(1000.0 * (1 + 300.0 / b_tait) ** (1 / 7), rel=1e-12)
