@@ -29,21 +29,22 @@ def cmd_list(args):
     return 0
 
 
-def set_pairs(pairs) -> dict:
+def set_pairs(pairs, known=None) -> dict:
     """``--set key=value`` pairs (cases.overrides.parse_pairs); a value written with a unit,
     as a scene file takes it ("500 kPa"), is refused with its SI number: --set values
-    are SI numbers, and the key alone does not say what it measures."""
+    are SI numbers, and the key alone does not say what it measures. ``known(key)``, where
+    given, says which keys the run takes: another is left for the unknown-key error, not
+    told how to write its value."""
     from .cases import overrides as ov
-    from .scenefile.reader import QUANTITY_UNITS
+    from .scenefile.reader import QUANTITY_UNITS, split_quantity
     out = ov.parse_pairs(pairs)
     for key, value in out.items():
-        parts = value.split(None, 1) if isinstance(value, str) else []
-        if len(parts) == 2 and parts[1].strip() in QUANTITY_UNITS:
-            unit, factor = QUANTITY_UNITS[parts[1].strip()]
-            try:
-                si = float(parts[0]) * factor
-            except ValueError:
-                continue
+        if known is not None and not known(key):
+            continue
+        parts = split_quantity(value) if isinstance(value, str) else None
+        if parts is not None and parts[1] in QUANTITY_UNITS:
+            unit, factor = QUANTITY_UNITS[parts[1]]
+            si = parts[0] * factor
             raise ParameterError(f"--set {key} = {value!r}: --set takes SI numbers without "
                                  f"units; write {key}={si:g} (in {unit})")
     return out
@@ -91,7 +92,8 @@ def cmd_run(args):
         from . import scenefile
         case = scenefile.load(args.scene)
         scene, probes = case.scene, case.probes
-        phys = ov.apply(scene, set_pairs(args.set), f"scene file {args.scene!r}")
+        phys = ov.apply(scene, set_pairs(args.set, ov.known_to(scene)),
+                        f"scene file {args.scene!r}")
         out = args.out or case.output["file"] or f"results/{scene.name}.h5"
         every = args.every if args.every is not None else case.output["every"]
         want_plot = args.plot or case.output["plot"]
@@ -114,8 +116,14 @@ def cmd_run(args):
     if args.dt is not None:
         number("--dt", args.dt, 0.0, None, lo_open=True)
     if every is not None:       # named as the user gave it: an option or the scene file's key
-        number("--every" if args.every is not None else f"[output] every of {args.scene}",
-               every, 0.0, t_end, lo_open=True)
+        try:
+            number("--every" if args.every is not None
+                   else f"{args.scene}: [output]: key 'every'", every, 0.0, t_end, lo_open=True)
+        except ParameterError as e:
+            if args.every is None and args.t_end is not None:
+                raise ParameterError(f"{e} (the end time --t-end; give --every with it)") \
+                    from None
+            raise
     _, params = setup(scene, args.dt, unsafe_dt=unsafe, **phys)  # every check before compiling
     check_steps(t_end, float(params.dt))
     info = {"scene": args.scene, "set": args.set or [], "t_end": t_end, "every": every,

@@ -54,6 +54,14 @@ def build(scene_name: str, overrides: dict, base: dict | None = None):
                         f"scene parameters {', '.join(keys)}; ")
 
 
+def known_to(scene):
+    """``known(key)`` for :func:`apply` on a built ``scene``: ``dt``, a Physics option or a
+    Params leaf (bare, even if ambiguous, or dotted)."""
+    names = scene.params.names()
+    leaves = {n.split(".")[-1] for n in names}
+    return lambda k: k == "dt" or k in Physics.OPTIONS or k in names or k in leaves
+
+
 def apply(scene, overrides: dict, what: str, also: str = "") -> dict:
     """Apply ``overrides`` that are not builder keywords to a built ``scene``: ``dt``, Params
     leaves (``mu`` or ``sph.mu``) and Physics options (returned, checked). ``what`` names
@@ -78,8 +86,10 @@ def apply(scene, overrides: dict, what: str, also: str = "") -> dict:
             params = params.set(k, v)
         except ParameterError as e:
             if "unknown parameter" in str(e):
+                in_file = ("; the scene's own keys (its [fluid] dx, a structure's E, …) "
+                           "are set in the file" if what.startswith("scene file") else "")
                 raise ParameterError(
-                    f"unknown key {k!r} for {what}; allowed: {also}params "
+                    f"unknown key {k!r} for {what}{in_file}; allowed: {also}params "
                     f"{', '.join(params.names())}; physics options "
                     f"{', '.join(Physics.OPTIONS)}") from None
             raise

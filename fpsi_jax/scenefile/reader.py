@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import tomllib
 
 from ..model.errors import ParameterError
@@ -77,15 +78,23 @@ QUANTITY_UNITS = {
 }
 
 
+_NUMBER_AND_UNIT = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
+
+
+def split_quantity(text: str):
+    """(value, unit) of ``"<value> <unit>"``, the space optional ("5 mm", "5mm", "2e-3 m");
+    None if it does not start with a number."""
+    m = _NUMBER_AND_UNIT.fullmatch(text)
+    return None if m is None else (float(m.group(1)), m.group(2))
+
+
 def quantity(key, text: str) -> float:
     """``"<value> <unit>"`` in the key's SI unit; ValueError naming the unit if it measures
     something else."""
-    parts = text.strip().split(None, 1)
-    try:
-        value = float(parts[0])
-    except (ValueError, IndexError):
-        raise ValueError(f"= {text!r} is not a number [{key.unit}]") from None
-    unit = parts[1].strip() if len(parts) > 1 else ""
+    parts = split_quantity(text)
+    if parts is None:
+        raise ValueError(f"= {text!r} is not a number [{key.unit}]")
+    value, unit = parts
     si, f = QUANTITY_UNITS.get(unit, (None, None))
     if si != key.unit:
         allowed = [u for u, (s, _) in QUANTITY_UNITS.items() if s == key.unit]

@@ -22,8 +22,15 @@ from fpsi_jax.run import io
     (["validate", "nope"], "unknown validation case 'nope'"),
     (["run", "dam_break", "--set", "dx=5 mm"],
      "--set dx = '5 mm': --set takes SI numbers without units; write dx=0.005 (in m)"),
+    # a scene file's dx is set in the file: not told to write dx=0.005, which --set refuses
+    (["run", "FILE", "--set", "dx=5 mm"], "unknown key 'dx' for scene file"),
+    (["run", "FILE", "--set", "dx=5 mm"], "are set in the file"),
+    (["run", "FILE", "--set", "sph.mu=1 mPa s"], "write sph.mu=0.001 (in Pa s)"),
 ])
 def test_bad_input_exits_2_with_one_line(argv, word, tmp_path, capsys):
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    argv = [os.path.join(root, "examples", "dam_break.toml") if a == "FILE" else a
+            for a in argv]
     out = tmp_path / "x.h5"
     rc = cli.main(argv + (["--out", str(out)] if argv[0] == "run" else []))
     err = capsys.readouterr().err.strip()
@@ -35,7 +42,7 @@ def test_bad_input_exits_2_with_one_line(argv, word, tmp_path, capsys):
 def test_a_scene_files_frame_interval_past_a_shortened_run_names_the_files_key(tmp_path,
                                                                                capsys):
     """``--t-end`` shorter than the file's ``[output] every``: the one line names that key
-    (the user never typed ``--every``)."""
+    in the scene file's form (the user never typed ``--every``) and says to give --every."""
     path = tmp_path / "post.toml"
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     text = open(os.path.join(root, "examples", "dam_break_on_post.toml")).read()
@@ -45,8 +52,9 @@ def test_a_scene_files_frame_interval_past_a_shortened_run_names_the_files_key(t
     rc = cli.main(["run", str(path), "--t-end", "0.001", "--out", str(out)])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and not out.exists()
-    assert err.splitlines() == [f"error: [output] every of {path} = 0.01 is out of range; "
-                                "allowed (0, 0.001]"]
+    assert err.splitlines() == [f"error: {path}: [output]: key 'every' = 0.01 is out of "
+                                "range; allowed (0, 0.001] (the end time --t-end; give --every "
+                                "with it)"]
 
 
 def test_list_names_scenes_and_cases(capsys):
