@@ -6,11 +6,12 @@
 or, from Python,
 
     from fpsi_jax import scenefile
-    from calibrate import usercase
+    from calibrate import fit, usercase
     sf = scenefile.load("my_case.toml")
     case = usercase.build(sf, usercase.settings(sf, data="measured.csv", fit=["E"]))
     res = fit.fit(case.calibration)
-    record = usercase.report(case, res)          # the JSON record; usercase.plot(...)
+    record, curves = usercase.report(case, res)  # the JSON record and the curves
+    usercase.plot(case, record, curves, "fit.png")
 
 What is fitted (``--fit``, comma separated, each ``name`` or ``name:lo:hi``):
 

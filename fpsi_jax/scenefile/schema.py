@@ -437,7 +437,8 @@ SI units; a positive quantity is fitted in log space):
 - `stiffness` — a factor on every spring.
 - any scalar `Params` leaf by its dotted name or a short name naming one leaf:
   `damping` (`dem.damping`, viscous damping c [1/s], default bounds ×0.01 – ×100 of its
-  start), `dem.mu`, `bond.beta_bar`, …; `fpsi calibrate my_case.toml --fit Q` lists them.
+  start), `dem.mu`, `bond.beta_bar`, …; an unknown name (`--fit Q`) is refused with the
+  list of them.
 
 `--start name=value` sets a start value (default: the file's); `--window a,b` the fitted
 time span (default: the data's, which must then end by `[scene] t_end`), `--holdout a,b`
@@ -451,6 +452,13 @@ at every sample in the window, each component scaled by its largest measured val
 loss of 10⁻⁴ is an RMS misfit of 1 % of the signal; for 'static' (ū_sim − ū_data)/|ū_data|
 of the window means; for 'vibration' log(f/f_data) and log(ζ/ζ_data). The RMS lines are
 in SI units (m for a displacement measured in mm).
+
+The fit steps at one Δt for every trial, the stability bound of the stiffest values its
+bounds allow (the JSON's `run.dt_s`), usually shorter than the step `fpsi run` takes at the
+file's values. A recording of your own model made with `fpsi run` (a synthetic test) then
+differs from the fit's model by the step's error: on noise-free data the fitted values come
+within that error of the truth, but the standard errors, which measure the misfit left,
+need not cover it. Make such a recording with `fpsi run FILE --dt <run.dt_s>`.
 """
 
 
