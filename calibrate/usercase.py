@@ -63,7 +63,7 @@ import numpy as np
 
 from fpsi_jax.model.errors import ParameterError
 from fpsi_jax.scenefile import data as datafile
-from fpsi_jax.scenefile.reader import fail
+from fpsi_jax.scenefile.reader import FileError, fail
 
 from . import space as sp
 from .fit import Calibration
@@ -101,7 +101,11 @@ class Settings:
 
 
 def _bad(sf, key, msg):
-    fail(sf.path, "calibration", f"key {key!r}{msg}")
+    """Refuse a setting, named as the user can have given it: the flag alone where the
+    file's [calibration] table lacks the key, else both (a flag wins over the table)."""
+    if key in (sf.calibration or {}):
+        fail(sf.path, "calibration", f"key {key!r} (or --{key}){msg}")
+    raise FileError(f"{os.path.basename(sf.path)}: --{key}{msg}")
 
 
 def split_list(items) -> list[str]:
