@@ -197,7 +197,9 @@ def wall_width(cfg: NeighborConfig, x) -> int:
     width from the first positions alone was regrown in every such run (a recompile and a
     redone chunk). 0 for a config without such rows or without a cell list (jax-md's O(N²)
     list puts wall neighbours in those rows too). Host side, numpy, nothing compiled
-    (run.driver.setup calls it on the scene's first positions)."""
+    (run.driver.setup calls it on the scene's first positions). A breakable structure's
+    rows are not given a fluid row's whole width from the start: the boundary rows share
+    the width, and FPSI I and a breaking gate stepped 18 % slower with it."""
     if not cfg.fluid_only_rows or _small(cfg):
         return 0
     first, stop, n_f = cfg.fluid_only_rows
@@ -208,6 +210,20 @@ def wall_width(cfg: NeighborConfig, x) -> int:
     row = int(np.max(_count_within(listed, x[:n_f], r), initial=1)) - 1     # not itself
     half_row = int(row * mult + extra) // 2                 # half of K as allocate sizes it
     return max(int(np.ceil(wall * mult)) + extra, half_row, 1)
+
+
+def room_for_broken_discs(cfg: NeighborConfig) -> NeighborConfig:
+    """The DEM list ``cfg`` with the room a structure's broken discs need when they pile up,
+    as a regrowth would give it (:data:`CHEAP_REGROWTH` × the need): rows for the six
+    touching neighbours of a close-packed heap, cells for the most disc centres a cell
+    holds at spacing 2R, (⌊side/2R⌋ + 1)², R the largest radius (r_cut = 2R × reach). A
+    bonded square lattice lists four neighbours and four centres a cell, and a breaking
+    wall's list regrew to 9 and 6 (a recompile in the middle of the run)."""
+    two_r = cfg.r_cut                     # ≥ 2R: the contact reach of the largest discs
+    per_cell = (int(np.floor(cfg.list_radius / two_r)) + 1) ** 2
+    return dataclasses.replace(
+        cfg, min_neighbors=max(cfg.min_neighbors, int(np.ceil(6 * CHEAP_REGROWTH))),
+        min_cell_capacity=max(cfg.min_cell_capacity, int(np.ceil(per_cell * CHEAP_REGROWTH))))
 
 
 def _count_within(xc, xq, r):

@@ -479,6 +479,34 @@ def test_wall_rows_are_read_at_the_width_setup_measured():
                                                        xs + np.asarray(cfg.origin, np.float32)))
 
 
+def test_a_structure_that_can_break_starts_with_the_room_its_broken_discs_take():
+    """With bonds that can break, setup gives the DEM list rows for six touching neighbours
+    and cells for (⌊side/2R⌋ + 1)² centres, each × CHEAP_REGROWTH; unbreakable bonds keep
+    the measured room, and so do scenes with grains (their packed bed sizes the list); the
+    SPH list's wall rows keep their measured width either way."""
+    import dataclasses
+    from fpsi_jax.run.driver import setup
+    from fpsi_jax.solver import init
+    scene = cases.build("elastic_gate", dx=0.005)
+    whole, params = setup(scene)
+    assert not init.breakable(whole, params)
+    strong = params.bond
+    weak = params.replace(bond=dataclasses.replace(strong, sigma_c=2.0e5))
+    broken, _ = setup(scene, params=weak)
+    assert init.breakable(broken, weak)
+    assert init.breakable(broken, params.replace(bond=dataclasses.replace(strong, tau_c=1e5)))
+    assert whole.neighbors.wall_width == broken.neighbors.wall_width
+    dem = broken.dem_neighbors
+    per_cell = (int(np.floor(dem.list_radius / dem.r_cut)) + 1) ** 2      # 2R: r_cut
+    assert per_cell == 4                                                  # skin 0.5 R
+    assert (dem.min_neighbors, dem.min_cell_capacity) == (9, 6)           # × 1.5
+    assert (whole.dem_neighbors.min_neighbors, whole.dem_neighbors.min_cell_capacity) == (0, 0)
+    # with grains the packed bed sizes the list: no more room than measured
+    fpsi, p = setup(cases.build("fpsi_failure", dx=0.01))
+    assert init.breakable(fpsi, p) and fpsi.n_grain
+    assert (fpsi.dem_neighbors.min_neighbors, fpsi.dem_neighbors.min_cell_capacity) == (0, 0)
+
+
 def test_a_wall_row_past_its_width_overflows_and_grow_widens_only_it():
     """A width one short of the widest boundary row: the allocation and a rebuild flag a
     neighbour overflow, the rebuild's need[2] is that row's count, and grow widens the
