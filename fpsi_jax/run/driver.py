@@ -282,17 +282,21 @@ class Chunk:
 
 
 def run_until_fits(attempt: Callable, phys: Physics, state: State, dt: float, *,
-                   output: str | None = None, max_regrowths: int = 12):
+                   output: str | None = None, max_regrowths: int = 12,
+                   on_regrowth: Callable | None = None):
     """The one chunk / redo / error loop that the driver, calibration and the benchmarks
     share. ``attempt(phys, state) -> (end, result)`` runs a compiled chunk from ``state``;
     ``end`` is the chunk's end State (only its ``status`` is read unless the chunk must be
     redone). When a neighbour list overflowed (or h outgrew the cut-off) before anything
     went bad, the lists are grown for what ``end`` ran out of, ``state`` is reallocated
-    and the chunk redone, so no pair is ever dropped; a chunk that went unstable raises
+    and the chunk redone, so no pair is ever dropped (``on_regrowth()``, if given, is called
+    first: the progress line says why it stops); a chunk that went unstable raises
     :class:`SimulationError`. Returns a :class:`Chunk`."""
     for k in range(max_regrowths + 1):
         end, result = attempt(phys, state)
         if end.status.must_redo():
+            if on_regrowth is not None:
+                on_regrowth()
             phys = grow(phys, end)
             state = reallocate(phys, state)
             continue
@@ -392,7 +396,8 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
                 return new, obs
 
             t_chunk = time.perf_counter()
-            c = run_until_fits(attempt, phys, state, dt, output=output)
+            c = run_until_fits(attempt, phys, state, dt, output=output,
+                               on_regrowth=bar.regrowing if bar else None)
             phys, state, reallocs = c.phys, c.end, reallocs + c.regrowths
             if not first:
                 compile_s = time.perf_counter() - t0   # compile + first chunk
@@ -534,10 +539,17 @@ class _Progress:
             self.bar = self.tqdm(total=self.total, initial=self.done, desc=self.name,
                                  unit="step", leave=False)
             self.first = False
-        else:
-            self.bar.update(n)
         if n_out:
             self.bar.set_postfix(left=n_out, refresh=False)
+        else:
+            self.bar.set_postfix_str("", refresh=False)
+        if self.bar.n < self.done:
+            self.bar.update(self.done - self.bar.n)
+
+    def regrowing(self):
+        """Say why the bar stops: a list grew, the step is recompiled, the chunk redone."""
+        if not self.first:
+            self.bar.set_postfix_str("a neighbour list grew: recompiling", refresh=True)
 
     def close(self):
         self.bar.close()

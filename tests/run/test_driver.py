@@ -197,6 +197,23 @@ def test_chunks_that_regrow_after_the_first_are_timed_apart():
     assert 0.0 < res.regrowth_s <= res.wall_s - res.compile_s
 
 
+def test_the_progress_line_says_why_it_stops_when_a_list_grows(capsys):
+    """The bar stands still while the step recompiles: its postfix says so, and the
+    next chunk's update clears it."""
+    simulate(squeezed_block(), progress=True, capacity_multiplier=1.0, chunk_steps=4,
+             rho_tolerance=0.9, skin=0.1)
+    lines = capsys.readouterr().err.replace("\r", "\n").splitlines()
+    assert any("a neighbour list grew: recompiling" in ln for ln in lines)
+    from fpsi_jax.run.driver import _Progress
+    bar = _Progress("x", 12, 0)
+    bar.advance(4, 0)
+    bar.regrowing()
+    assert "recompiling" in bar.bar.postfix
+    bar.advance(4, 0)
+    assert not bar.bar.postfix and bar.bar.n == 8
+    bar.close()
+
+
 def test_wall_rows_too_narrow_are_widened_and_redone(monkeypatch):
     """A boundary-row width of one slot (NeighborConfig.wall_width) overflows at the first
     allocation: the driver widens only it to what the rows hold before the first rates are
@@ -207,8 +224,8 @@ def test_wall_rows_too_narrow_are_widened_and_redone(monkeypatch):
         return cases.build("hydrostatic_tank", dx=0.01, depth=0.1, width=0.1, t_end=0.01)
 
     def width(w):
-        return lambda scene, phys: dataclasses.replace(phys, neighbors=dataclasses.replace(
-            phys.neighbors, wall_width=w))
+        return lambda scene, phys, *_: dataclasses.replace(
+            phys, neighbors=dataclasses.replace(phys.neighbors, wall_width=w))
     wide = simulate(sc(), progress=False, chunk_steps=20)
     monkeypatch.setattr(init, "fit_wall_width", width(1))
     tight = simulate(sc(), progress=False, chunk_steps=20)
