@@ -324,7 +324,9 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
           "the water's force on its boundary particles and the discs' on its DEM walls)"),
       Key("region", "region", "m", None, "only the body's discs in this region "
           "(displacement: e.g. the tip)"),
-      Key("point", "point", "m", None, "pressure: where; displacement: the body's disc "
+      Key("point", "point", "m", None, "pressure: where (weakly compressible: it carries "
+          "sound waves at c0, so a released water column's floor pressure first dips and "
+          "rings for some H/c0 before it follows the flow); displacement: the body's disc "
           "nearest to it"),
       Key("about", "point", "m", None, "force: moment reference point (default: the "
           "discs' start centroid, or the obstacle's particles' centroid, or its walls' "
