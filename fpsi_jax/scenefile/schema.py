@@ -326,7 +326,7 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
           "(displacement: e.g. the tip)"),
       Key("point", "point", "m", None, "pressure: where (weakly compressible: it carries "
           "sound waves at c0, so a released water column's floor pressure first dips and "
-          "rings for some H/c0 before it follows the flow); displacement: the body's disc "
+          "rings for a few H/c0 before it follows the flow); displacement: the body's disc "
           "nearest to it"),
       Key("about", "point", "m", None, "force: moment reference point (default: the "
           "discs' start centroid, or the obstacle's particles' centroid, or its walls' "
