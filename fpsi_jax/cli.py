@@ -148,7 +148,7 @@ def cmd_run(args):
         return 130 if e.signal == "SIGINT" else 143
     sub = (f" x {res.physics.dem_substeps} DEM sub-steps"
            if res.physics.has_fluid and res.physics.has_solid else "")
-    speed = (f"{res.particle_steps_per_s / 1e6:.2f} M particle-steps/s"
+    speed = (f"{res.particle_steps_per_s / 1e6:.3g} M particle-steps/s"
              + (" (compile included: every step was in the first chunk)"
                 if res.throughput_includes_compile else ""))
     left = f", {res.excluded} particles left through open sides" if res.excluded else ""

@@ -105,6 +105,10 @@ def force(name: str, scene, idx, about=None) -> Probe:
     """The fluid's force on the structure discs ``idx`` (Σ F_i from the FSI coupling) and
     its moment about ``about`` (default: their start centroid), anticlockwise positive."""
     _need(scene, "solid", name)
+    if scene.fluid is None:
+        raise ParameterError(f"probe {name!r}: a force probe on discs is the fluid's force on "
+                             "them, and the scene has no fluid; the discs' force on a fixed "
+                             "body is a force probe on an obstacle (its DEM walls)")
     ii = _indices(idx, scene.solid.n, f"probe {name!r}")
     structure = scene.solid.structure_indices()
     rows = np.flatnonzero(np.isin(structure, ii))

@@ -210,14 +210,22 @@ table("kinematic", True, "Discs moving at a prescribed constant velocity whateve
 table("contacts", False, "DEM contact law (W10–W17, K25). kn and ks default to the bonded "
       "structures' material; without a structure kn is required, unless every disc is "
       "clamped or kinematic (a rigid pier as a [[kinematic]] body at rest: no contact "
-      "force is read, and the step takes no DEM sub-steps).",
+      "force is read, and the step takes no DEM sub-steps). The material's contact springs "
+      "are 1 % of its bonds' (the structure's `contact_fraction`): a structure loaded "
+      "through contacts, by a platen of kinematic discs or an obstacle's walls, is loaded "
+      "through that soft interface (a 4 × 8 cm specimen of E 50 MPa compressed by a "
+      "platen came out at 5 MPa), and a stiffer `kn` here stiffens the bonded pairs in "
+      "compression too; such a load is better given as a `load`, or in Python by moving "
+      "the structure's own end rows (`fpsi_jax.build.move`).",
       _pos("kn", "N/m", None, "normal contact stiffness per unit thickness"),
       Key("ks", "float", "N/m", None, "shear contact stiffness (default ½ kn, or the "
           "material's)", lo=0.0),
       Key("friction", "float", "", 0.3, "Coulomb friction coefficient μ", lo=0.0),
       Key("beta_n", "float", "", 0.0, "normal dashpot ratio", lo=0.0, hi=1.0, hi_open=True),
       Key("beta_s", "float", "", 0.0, "shear dashpot ratio", lo=0.0, hi=1.0, hi_open=True),
-      Key("alpha", "float", "", 0.0, "local damping α (K25)", lo=0.0, hi=1.0, hi_open=True),
+      Key("alpha", "float", "", 0.0, "local damping α (K25); it switches with each "
+          "velocity's sign, so gradients through it are not the loss's derivative: fit "
+          "with `damping`", lo=0.0, hi=1.0, hi_open=True),
       Key("damping", "float", "1/s", 0.0, "mass-proportional viscous damping c", lo=0.0),
       Key("load_ramp", "float", "s", 0.0, "external loads grow linearly over this time",
           lo=0.0))

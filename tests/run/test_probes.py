@@ -49,7 +49,7 @@ def test_displacement_is_the_mean_shift_of_the_selected_discs():
 
 
 def test_force_sums_the_fluid_force_and_its_moment_about_the_centroid():
-    sc = scene(fluid=False)
+    sc = scene()
     p = P.force("load", sc, [0, 1, 2])
     f = np.array([[1.0, 2.0], [3.0, -1.0], [0.5, 0.5]])
     s = solid_state(sc.solid.x, fsi=NS(force=jnp.asarray(f), idx=jnp.arange(3)))
@@ -62,7 +62,13 @@ def test_force_sums_the_fluid_force_and_its_moment_about_the_centroid():
 
 def test_force_refuses_discs_that_are_not_coupled_structure():
     with pytest.raises(ParameterError, match="structure"):
-        P.force("f", scene(fluid=False), [3])
+        P.force("f", scene(), [3])
+
+
+def test_force_on_discs_of_a_dry_scene_is_refused_before_the_run():
+    # it is the fluid's force: a dry scene has none (a run crashed with a traceback)
+    with pytest.raises(ParameterError, match="no fluid.*obstacle"):
+        P.force("f", scene(fluid=False), [0, 1, 2])
 
 
 def test_obstacle_force_sums_its_rows_and_their_moment_about_their_centroid():
