@@ -133,7 +133,7 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
         raise ParameterError(f"dt = {dt} out of range; allowed (0, inf) with unsafe_dt")
     phys = dataclasses.replace(phys, dem_substeps=n_sub)
     params = params.replace(dt=float(dt)).validate()
-    return init.fit_wall_width(scene, phys, params), params
+    return init.fit_wall_width(scene, init.room_for_breakage(phys, params)), params
 
 
 #: the step counter is int32 inside the compiled step

@@ -41,17 +41,21 @@ def breakable(phys: Physics, params: Params) -> bool:
                     np.min(np.asarray(params.bond.tau_c, float))) < 1.0e30)
 
 
-def fit_wall_width(scene: Scene, phys: Physics, params: Params | None = None) -> Physics:
+def room_for_breakage(phys: Physics, params: Params) -> Physics:
+    """``phys`` whose DEM list starts with the room a broken structure's discs take
+    (neighbors.room_for_broken_discs) where ``params`` lets bonds break, so the run does
+    not recompile when they do; not with grains, whose packed bed sizes the list already
+    (FPSI I's DEM sub-step took 37 % longer with that room, and its list never regrew
+    without it)."""
+    if phys.dem_neighbors is None or phys.n_grain or not breakable(phys, params):
+        return phys
+    return dataclasses.replace(
+        phys, dem_neighbors=neighbors.room_for_broken_discs(phys.dem_neighbors))
+
+
+def fit_wall_width(scene: Scene, phys: Physics) -> Physics:
     """``phys`` with the width the sums read of the SPH list's wall rows
-    (NeighborConfig.wall_width) measured on the scene's first positions; where ``params``
-    lets bonds break, the DEM list starts with the room a broken structure's discs take
-    (neighbors.room_for_broken_discs), so the run does not recompile when it breaks; not
-    with grains, whose packed bed sizes the list already (FPSI I's DEM sub-step took 37 %
-    longer with that room, and its list never regrew without it)."""
-    if (params is not None and phys.dem_neighbors is not None and not phys.n_grain
-            and breakable(phys, params)):
-        phys = dataclasses.replace(
-            phys, dem_neighbors=neighbors.room_for_broken_discs(phys.dem_neighbors))
+    (NeighborConfig.wall_width) measured on the scene's first positions."""
     cfg = phys.neighbors
     if cfg is None or not cfg.fluid_only_rows:
         return phys

@@ -224,8 +224,8 @@ def test_wall_rows_too_narrow_are_widened_and_redone(monkeypatch):
         return cases.build("hydrostatic_tank", dx=0.01, depth=0.1, width=0.1, t_end=0.01)
 
     def width(w):
-        return lambda scene, phys, *_: dataclasses.replace(
-            phys, neighbors=dataclasses.replace(phys.neighbors, wall_width=w))
+        return lambda scene, phys: dataclasses.replace(phys, neighbors=dataclasses.replace(
+            phys.neighbors, wall_width=w))
     wide = simulate(sc(), progress=False, chunk_steps=20)
     monkeypatch.setattr(init, "fit_wall_width", width(1))
     tight = simulate(sc(), progress=False, chunk_steps=20)
