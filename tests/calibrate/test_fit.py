@@ -77,6 +77,13 @@ def test_gradient_matches_central_differences(tip_problem):
     assert set(cal.space.names) <= set(se) and se["s"] > 0
     for n in cal.space.names:
         assert se[n]["std_error"] > 0
+    # a Jacobian that overflowed at the fitted point gives a note, not a crash after the fit
+    # (numpy's SVD of a NaN JᵀJ raised LinAlgError in the README's calibration of the post)
+    def nan_jacobian(zz):
+        J, out = cal.jacobian(zz)
+        return J.at[0, 0].set(jnp.nan), out
+    se = gauss_newton_stderr(cal, z, jac=nan_jacobian)
+    assert set(se) == {"note"} and "Jacobian is not finite" in se["note"]
 
 
 @pytest.mark.slow
