@@ -127,8 +127,9 @@ def gauss_newton_stderr(cal: Calibration, z, noise: float | None = None, jac=Non
     z = jnp.asarray(z, cal.dtype)
     r = np.asarray(total_residuals(cal.targets, cal.problem.times, jnp.asarray(u)), float)
     m, p = J.shape
-    if not (np.all(np.isfinite(J)) and np.all(np.isfinite(r))):
-        bad = "Jacobian is" if not np.all(np.isfinite(J)) else "residuals are"
+    finite_j = bool(np.all(np.isfinite(J)))
+    if not (finite_j and np.all(np.isfinite(r))):
+        bad = "residuals are" if finite_j else "Jacobian is"
         return {"note": f"the {bad} not finite at the fitted point (a chaotic float32 "
                         "tangent can overflow; design.md, Gradients and calibration): no "
                         "standard errors; try --jacobian fd or x64"}

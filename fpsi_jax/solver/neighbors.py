@@ -197,9 +197,7 @@ def wall_width(cfg: NeighborConfig, x) -> int:
     width from the first positions alone was regrown in every such run (a recompile and a
     redone chunk). 0 for a config without such rows or without a cell list (jax-md's O(N²)
     list puts wall neighbours in those rows too). Host side, numpy, nothing compiled
-    (run.driver.setup calls it on the scene's first positions). A breakable structure's
-    rows are not given a fluid row's whole width from the start: the boundary rows share
-    the width, and FPSI I and a breaking gate stepped 18 % slower with it."""
+    (run.driver.setup calls it on the scene's first positions)."""
     if not cfg.fluid_only_rows or _small(cfg):
         return 0
     first, stop, n_f = cfg.fluid_only_rows
