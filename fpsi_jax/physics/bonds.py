@@ -28,8 +28,13 @@ shear GA/d0. c = 1 for touching discs (every packing's nearest neighbours), so t
 only acts where a builder stretches a lattice to fit a span (``square_packing(stretch=…)``:
 a cantilever of 79.375 mm at d = 1.25 mm has columns 1.2599 mm apart).
 
-Forces and moments: on B −F̄_n n + F̄_s t and M̄ − F̄_s ℓ_B; on A the opposite force and
-−M̄ − F̄_s ℓ_A (the shear force acts at the contact point, as for contacts).
+Forces and moments: on B −F̄_n n + F̄_s (d0/d) t and M̄ − F̄_s ℓ_B; on A the opposite force
+and −M̄ − F̄_s ℓ_A (the shear force acts at the contact point, as for contacts). These are
+minus the gradient of the bond's energy ½F̄_n²/(k̄_n cA) + ½F̄_s²/(k̄_s cA) + ½M̄²/(k̄_n cI)
+in the discs' positions and rotations: U_s turns with the axis at d0/d per unit of B's
+sideways motion, so the shear force on the discs is F̄_s d0/d, and then the pair carries
+no moment, x_A × F_A + τ_A + x_B × F_B + τ_B = 0 (with F̄_s t it would be F̄_s (d − d0)).
+The factor differs from 1 by the bond's strain.
 
 Fracture (K21–K22, W37–W38): tension when F̄_n/A + β̄ |M̄| R̄/I ≥ σ̄_c, else shear when
 |F̄_s|/A ≥ τ̄_c. A broken bond never heals; the pair then meets through the contact law only.
@@ -127,7 +132,8 @@ def bond_forces(bp, kind, n_solid, u, theta, radius, i, j, d0, e0, intact):
     alive, mode = fracture(bp, sigma, tau, intact)
     w = alive.astype(u.dtype)
     fn, fs, m = fn * w, fs * w, m * w
-    t = perp(n)
+    # the shear force on the discs is F̄_s d0/d (module docstring: the energy's gradient)
+    t = perp(n) * (d0 / jnp.sqrt(jnp.sum(bond_axis(u, i, j, d0, e0) ** 2, axis=-1)))[:, None]
     f_b = -fn[:, None] * n + fs[:, None] * t
     force = jnp.zeros((n_solid, 2), u.dtype).at[j].add(f_b).at[i].add(-f_b)
     torque = (jnp.zeros((n_solid,), u.dtype).at[j].add(m - fs * lb)

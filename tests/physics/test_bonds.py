@@ -172,7 +172,8 @@ def test_one_sided_rotation_adds_shear_at_the_contact_point():
 
 
 def test_sideways_displacement_gives_shear():
-    """B moved by s ⊥ the bond: Δφ = atan2(s, d0), U_s = d0 Δφ, d = √(d0² + s²)."""
+    """B moved by s ⊥ the bond: Δφ = atan2(s, d0), U_s = d0 Δφ, d = √(d0² + s²); the force
+    on B −F̄_n n + F̄_s (d0/d) t."""
     s = 3e-6
     xb = np.array([0.1 + D0, 0.2 + s])
     force, torque, _, _, fn, fs, m = one_bond(xb)
@@ -183,10 +184,48 @@ def test_sideways_displacement_gives_shear():
     fs_w, fn_w = -KS * AREA * us, KN * AREA * (d - D0)
     assert fs[0] == pytest.approx(fs_w, rel=1e-10)          # ≈ −12 N
     assert fn[0] == pytest.approx(fn_w, rel=1e-6)
-    np.testing.assert_allclose(force[1], -fn_w * n + fs_w * t, rtol=1e-9)
+    np.testing.assert_allclose(force[1], -fn_w * n + fs_w * (D0 / d) * t, rtol=1e-9)
     np.testing.assert_allclose(force[0], -force[1], rtol=1e-12)
     np.testing.assert_allclose(torque, [-fs_w * R, -fs_w * R], rtol=1e-10)
     assert m[0] == 0.0
+
+
+@pytest.mark.parametrize("radius", [(R, R), (0.004, 0.006)])
+def test_bond_forces_are_minus_the_gradient_of_its_energy_and_carry_no_moment(radius):
+    """A bond stretched 3 %, turned and bent (discs of equal or unequal radius, made 1 mm
+    apart): the forces and torques on both discs are −∂E/∂(u, θ) of the bond energy
+    E = ½F̄_n²/(k̄_n cA) + ½F̄_s²/(k̄_s cA) + ½M̄²/(k̄_n cI) (jax.grad), and the pair's
+    moment about the origin, Σ x × F + τ, is zero: the shear force on the discs is
+    F̄_s d0/d (F̄_s alone left F̄_s (d − d0) = 3 % of its lever arm's moment)."""
+    ra, rb = radius
+    x0 = np.array([[0.1, 0.2], [0.1 + ra + rb + 0.001, 0.2]])
+    i, j = jnp.asarray([0]), jnp.asarray([1])
+    d0, e0 = bonds.rest_geometry(F(x0), i, j)
+    bp = BondParams(kn=KN, ks=KS)
+    c = (ra + rb) / float(d0[0])
+    area = 2 * 0.5 * (ra + rb)
+    inertia = 2.0 / 3.0 * (0.5 * (ra + rb)) ** 3
+
+    def energy(u, theta):
+        fn, fs, m, *_ = bonds.bond_loads(bp, "slab", u, theta, F(radius), i, j, d0, e0)
+        return jnp.sum(0.5 * fn ** 2 / (KN * c * area) + 0.5 * fs ** 2 / (KS * c * area)
+                       + 0.5 * m ** 2 / (KN * c * inertia))
+
+    u = F([[0.0, 0.0], [0.03 * float(d0[0]), 4e-4]])
+    theta = F([2e-3, -1e-2])
+    force, torque, *_ = bonds.bond_forces(bp, "slab", 2, u, theta, F(radius), i, j, d0, e0,
+                                          jnp.asarray([True]))
+    gu, gt = jax.grad(energy, argnums=(0, 1))(u, theta)
+    scale = float(jnp.max(jnp.abs(force)))
+    assert scale > 1e3                      # F̄_n ≈ 3 kN
+    np.testing.assert_allclose(np.asarray(force), -np.asarray(gu), rtol=1e-10,
+                               atol=1e-12 * scale)
+    np.testing.assert_allclose(np.asarray(torque), -np.asarray(gt), rtol=1e-10,
+                               atol=1e-12 * scale * R)
+    x = x0 + np.asarray(u)
+    f = np.asarray(force)
+    moment = np.sum(x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0] + np.asarray(torque))
+    assert abs(moment) < 1e-12 * scale * 0.2
 
 
 @pytest.mark.parametrize("phi", [0.3, 2.0, -2.5, 3.1])
