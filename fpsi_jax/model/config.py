@@ -197,6 +197,22 @@ def wall_force_rows(rows, scene) -> tuple:
     return (int(rows[0]), int(rows[1]))
 
 
+def held_disc_rows(rows, scene) -> tuple:
+    """The ``disc_reaction`` option checked against the scene: () or the sorted indices of
+    discs held at the start (clamped or kinematic: ``scene.solid.fixed``)."""
+    if rows is None or (isinstance(rows, (list, tuple, np.ndarray)) and len(rows) == 0):
+        return ()
+    solid = scene.solid
+    n = solid.n if solid is not None else 0
+    fixed = np.asarray(solid.fixed, bool) if solid is not None else np.zeros(0, bool)
+    ok = isinstance(rows, (list, tuple, np.ndarray)) and all(
+        isinstance(r, (int, np.integer)) and 0 <= r < n and fixed[r] for r in rows)
+    if not ok:
+        raise ParameterError(f"disc_reaction = {fmt(rows)}; allowed: indices of discs "
+                             f"held at the start (clamped or kinematic), 0 <= i < {n}")
+    return tuple(sorted({int(r) for r in rows}))
+
+
 def moving_discs(solid) -> tuple:
     """The discs free at the start, when a quarter or more of them are fixed (else (): all
     rows; Physics.moving_discs). Below that the saving is a few rows against one more
@@ -242,6 +258,10 @@ class Physics:
       wall_reaction        the step records the discs' force on each DEM wall
                            (WallState.reaction; a force probe on an obstacle with DEM
                            walls sets it); off by default
+      disc_reaction        indices of held (clamped or kinematic) discs: the step records
+                           the force and moment the other discs' contacts and bonds put on
+                           each (SolidState.reaction; a force probe on held discs sets it);
+                           () records none, the default
       h_margin             the neighbour cut-off allows h to grow to h_margin·h0
       rho_tolerance        |ρ/ρ0 − 1| above this marks a run unstable
       x64                  float64 everywhere
@@ -375,6 +395,7 @@ class Physics:
     shifting: float = 0.0
     wall_force: tuple = ()
     wall_reaction: bool = False
+    disc_reaction: tuple = ()
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
                "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
@@ -384,7 +405,7 @@ class Physics:
                "density_diffusion",
                "wall_images", "shifting", "sort_fluid", "transport_continuity", "added_mass",
                "dem_list_substeps", "structure_acceleration", "wall_force",
-               "wall_reaction")
+               "wall_reaction", "disc_reaction")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,
@@ -410,6 +431,8 @@ class Physics:
         opts = check_options(opts)
         if "wall_force" in opts:
             opts["wall_force"] = wall_force_rows(opts["wall_force"], scene)
+        if "disc_reaction" in opts:
+            opts["disc_reaction"] = held_disc_rows(opts["disc_reaction"], scene)
         # 0.4 h: with the fluid-only step (3.5× physics.md's) a 0.25 h skin was rebuilt every
         # ~5 steps of the 24k dam break and overflowed to K = 48; 0.4 h measured fastest
         # (0.25 / 0.3 / 0.35 / 0.4 / 0.45 / 0.6 h: 0.51 / 0.94 / 0.96 / 0.98 / 0.81 / 0.83 M

@@ -58,7 +58,13 @@ class SolidState:
     while a stiff bond's disc moves 10⁻⁷ m in a DEM step: drifting x itself rounded every
     step's motion by up to half of it and the rounding, through springs of 10⁷ N/m per
     metre, heated a standing bonded wall until its bonds cracked under its own weight. A
-    displacement of millimetres is held to 10⁻¹⁰ m."""
+    displacement of millimetres is held to 10⁻¹⁰ m.
+
+    ``reaction`` (n, 3), only with Physics.disc_reaction (else None): the force (F_x, F_y)
+    the free discs' contacts and the bonds put on each held disc that option lists, and
+    its moment about the origin, x × F + τ, the mean over the last step's DEM sub-steps
+    (the impulse over the step / Δt), as WallState.reaction for walls; zero on the other
+    rows."""
 
     x: Any
     v: Any
@@ -76,6 +82,7 @@ class SolidState:
     t_out: Any = None
     x_ref: Any = None
     u: Any = None
+    reaction: Any = None
 
     def moved_to(self, x):
         """The discs placed at ``x`` (n, 2), their displacement u = x − x_ref with them

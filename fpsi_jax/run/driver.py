@@ -352,6 +352,10 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
         physics_overrides["wall_force"] = (min(rows[0], had[0]), max(rows[1], had[1]))
     if probing.wall_reaction(probes):           # an obstacle force probe's DEM walls
         physics_overrides.setdefault("wall_reaction", True)
+    held = probing.held_discs(probes)
+    if held and "disc_reaction" not in physics_overrides:   # a force probe on held discs
+        had = tuple(scene.options.get("disc_reaction") or ())
+        physics_overrides["disc_reaction"] = tuple(sorted(set(had) | set(held)))
     phys, params = setup(scene, dt, params, unsafe_dt=unsafe_dt, **physics_overrides)
     dt = float(params.dt)
     p = params.as_arrays(stages.dtype(phys))

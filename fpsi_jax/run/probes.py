@@ -102,31 +102,58 @@ def displacement(name: str, scene, idx) -> Probe:
 
 
 def force(name: str, scene, idx, about=None) -> Probe:
-    """The fluid's force on the structure discs ``idx`` (Σ F_i from the FSI coupling) and
-    its moment about ``about`` (default: their start centroid), anticlockwise positive."""
+    """The force on the discs ``idx`` and its moment about ``about`` (default: their start
+    centroid), anticlockwise positive.
+
+    On discs that move under their forces it is the fluid's force (Σ F_i of the FSI
+    coupling, W6.1), the hydrodynamic load on a structure. On discs that are all held
+    (clamped or kinematic: a support, a platen, a gate driven at a given speed) it is
+    everything the rest of the model puts on them: the fluid's force where they are
+    coupled to it, plus the free discs' contacts and the bonds to free discs
+    (SolidState.reaction, the mean over the step's DEM sub-steps), the force a support
+    must hold against or a drive must overcome, with the sign of a load on the body. The
+    run computes the second part only when a probe asks (``spec['held_discs']``, passed on
+    as ``Physics.disc_reaction``, as :func:`~fpsi_jax.run.driver.simulate` arranges)."""
     _need(scene, "solid", name)
-    if scene.fluid is None:
-        raise ParameterError(f"probe {name!r}: a force probe on discs is the fluid's force on "
-                             "them, and the scene has no fluid; the discs' force on a fixed "
-                             "body is a force probe on an obstacle (its DEM walls)")
     ii = _indices(idx, scene.solid.n, f"probe {name!r}")
-    structure = scene.solid.structure_indices()
+    held = bool(np.all(np.asarray(scene.solid.fixed, bool)[ii]))
+    structure = scene.solid.structure_indices() if scene.fluid is not None else np.zeros(0)
     rows = np.flatnonzero(np.isin(structure, ii))
-    if rows.size == 0:
-        raise ParameterError(f"probe {name!r}: none of its discs is a fluid-coupled structure "
-                             "disc")
+    if not held:
+        if scene.fluid is None:
+            raise ParameterError(f"probe {name!r}: a force probe on discs that move is the "
+                                 "fluid's force on them, and the scene has no fluid; the "
+                                 "discs' force on a fixed body is a force probe on held "
+                                 "(clamped or kinematic) discs or on an obstacle")
+        if rows.size == 0:
+            raise ParameterError(f"probe {name!r}: none of its discs is a fluid-coupled "
+                                 "structure disc")
     c = (np.asarray(scene.solid.x, float)[ii].mean(axis=0) if about is None
          else np.asarray(about, float))
     rr = jnp.asarray(rows, jnp.int32)
+    spec = {"discs": int(ii.size), "about": c.tolist()}
+    if held:
+        spec["held_discs"] = sorted(int(i) for i in ii)
 
     def fn(s):
-        f = s.fsi.force[rr]
-        x = s.solid.x[s.fsi.idx[rr]] - jnp.asarray(c, s.solid.x.dtype)
-        m = jnp.sum(x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0])
-        return jnp.concatenate([jnp.sum(f, axis=0), m[None]])
+        dtype = s.solid.x.dtype
+        cc = jnp.asarray(c, dtype)
+        out = jnp.zeros(3, dtype)
+        if rows.size:
+            f = s.fsi.force[rr]
+            x = s.solid.x[s.fsi.idx[rr]] - cc
+            m = jnp.sum(x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0])
+            out = jnp.concatenate([jnp.sum(f, axis=0), m[None]])
+        if held:
+            if s.solid.reaction is None:
+                raise ParameterError(f"probe {name!r} reads held discs' reactions: run with "
+                                     f"Physics.disc_reaction = {spec['held_discs']} "
+                                     "(simulate arranges it)")
+            r = jnp.sum(s.solid.reaction[jnp.asarray(ii)], axis=0)
+            out = out + jnp.stack([r[0], r[1], r[2] - (cc[0] * r[1] - cc[1] * r[0])])
+        return out
 
-    return Probe(name, "force", fn, ("Fx", "Fy", "M"), ("N/m", "N/m", "N m/m"),
-                 {"discs": int(rows.size), "about": c.tolist()})
+    return Probe(name, "force", fn, ("Fx", "Fy", "M"), ("N/m", "N/m", "N m/m"), spec)
 
 
 def obstacle_force(name: str, scene, rows=None, about=None, walls=None) -> Probe:
@@ -194,6 +221,12 @@ def wall_reaction(probes) -> bool:
     """Whether any probe of ``probes`` reads the discs' force on DEM walls
     (Physics.wall_reaction)."""
     return any("dem_walls" in p.spec for p in probes or ())
+
+
+def held_discs(probes) -> tuple:
+    """The held discs every force probe on held discs of ``probes`` reads, sorted
+    (Physics.disc_reaction), or () when none asks for any."""
+    return tuple(sorted({i for p in probes or () for i in p.spec.get("held_discs", ())}))
 
 
 def wall_force_rows(probes) -> tuple:

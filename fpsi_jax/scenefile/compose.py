@@ -570,6 +570,8 @@ def compose(spec: dict, path: str) -> SceneFile:
         scene.options["wall_force"] = rows
     if P.wall_reaction(probes):  # and the discs' force on the DEM walls
         scene.options["wall_reaction"] = True
+    if P.held_discs(probes):     # and the free discs' force on held discs
+        scene.options["disc_reaction"] = P.held_discs(probes)
     out = dict(spec.get("output") or _defaults("output"))
     folder = os.path.dirname(os.path.abspath(path))
     if out["file"] is not None:

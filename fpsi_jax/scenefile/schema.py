@@ -200,9 +200,9 @@ table("discs", True, "Discs that are neither a bonded structure nor grains in th
 
 table("kinematic", True, "Discs moving at a prescribed constant velocity whatever the forces "
       "(a gate lifted at a given speed); they push the fluid and the grains. Give `box`, "
-      "`polygon` or `points`. A force probe on them reads the fluid's force only (the "
-      "contacts' force on a kinematic disc is never computed): for a fixed body that "
-      "grains or debris strike, an `[[obstacle]]`'s probe reads both.",
+      "`polygon` or `points`. A force probe on them reads all that pushes them: the "
+      "fluid's force and the free discs' contacts (a platen's load, the blows of "
+      "grains or debris on a gate), what the drive must overcome.",
       *[k for k in _DISC_COMMON if k.name not in ("clamp", "load")],
       Key("mass_model", "str", "", "lattice", "disc mass model", choices=MASS),
       Key("coupled", "bool", "", True, "takes part in the fluid sums (physics.coupling)"))
@@ -329,7 +329,10 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
           "broken_bonds")),
       Key("body", "str", "", None, "name of a structure, grains, discs or kinematic group "
           "(displacement, force, bed_profile, broken_bonds), or of an obstacle (force: "
-          "the water's force on its boundary particles and the discs' on its DEM walls)"),
+          "the water's force on its boundary particles and the discs' on its DEM walls). "
+          "force on discs that move: the fluid's force; on discs that are all held (a "
+          "kinematic group, or a `region` inside a structure's clamp): the fluid's force "
+          "plus the free discs' contacts and the bonds to them, the support's load"),
       Key("region", "region", "m", None, "only the body's discs in this region "
           "(displacement: e.g. the tip)"),
       Key("point", "point", "m", None, "pressure: where (weakly compressible: it carries "

@@ -113,7 +113,8 @@ def allocated_state(scene: Scene, phys: Physics) -> State:
             theta=a(np.zeros(so.n)), acc=z(x), alpha=a(np.zeros(so.n)), radius=a(so.radius),
             mass=a(so.mass), inertia=a(so.inertia), fixed=fixed, f_ext=a(so.f_ext),
             shear=jnp.zeros(snbrs.idx.shape, dt_), wall_shear=jnp.zeros((so.n, n_w), dt_),
-            t_out=a(np.full(so.n, -1.0)) if phys.open_sides else None, x_ref=x, u=z(x))
+            t_out=a(np.full(so.n, -1.0)) if phys.open_sides else None, x_ref=x, u=z(x),
+            reaction=a(np.zeros((so.n, 3))) if phys.disc_reaction else None)
         if scene.walls is not None:
             walls = WallState(a=a(scene.walls.a), b=a(scene.walls.b),
                               side=a(scene.walls.sides()),

@@ -195,6 +195,27 @@ def _wall_forces(dp, own, s, walls, dt, reaction=False):
     return jax.lax.switch(branch, [lambda: zero, near, every])
 
 
+def held_reaction(dp, s, idx, shear, rows, dt, f_bond=None, t_bond=None):
+    """The other discs' force on the held (clamped or kinematic) discs ``rows`` (r,): their
+    contacts with the free discs over the DEM list's rows ``idx`` (r, K), pairs of two held
+    discs left out (neither moves under its force), plus their bonds' force ``f_bond``
+    (n, 2) and torque ``t_bond`` (n,) when given. Returns ((r, 3): F_x, F_y and the moment
+    about the origin, x × F + τ; the rows' new contact history (r, K)).
+
+    A held disc's row of the contact law is the free disc's reversed: the same overlap,
+    reduced mass (the free disc's) and shear history, so Σ over the held discs is minus the
+    free discs' contact force from them (tests/solver/test_stages.py)."""
+    n = s.x.shape[0]
+    free = (idx < n) & ~s.fixed[jnp.minimum(idx, n - 1)]
+    f, tq, hist, _ = dem.disc_contacts(dp, s.x, s.v, s.omega, s.radius, s.mass, s.fixed,
+                                       jnp.where(free, idx, n), shear, dt, rows)
+    if f_bond is not None:
+        f, tq = f + f_bond[rows], tq + t_bond[rows]
+    x = s.x[rows]
+    m = x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0] + tq
+    return jnp.concatenate([f, m[:, None]], axis=-1), hist
+
+
 def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
                 wet=None, m_added=None) -> State:
     """Every force on the discs at the state's (x, θ, v, ω): contacts, walls, bonds (with
@@ -245,6 +266,13 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
                           t_break=jnp.where(new, state.t, b.t_break),
                           mode=jnp.where(new, mode, b.mode))
         force, torque = force + fb, torque + tb
+    reaction = s.reaction
+    if phys.disc_reaction:              # what a probe on held discs reads
+        held = jnp.asarray(phys.disc_reaction, jnp.int32)
+        with jax.named_scope("dem.held_reaction"):
+            r, hist = held_reaction(dp, s, state.solid_nbrs.idx[held], s.shear[held], held,
+                                    dt, *((fb, tb) if b is not None else ()))
+        reaction, shear = jnp.zeros_like(reaction).at[held].set(r), shear.at[held].set(hist)
     g = jnp.asarray(params.gravity, x.dtype)
     force = force + s.mass[:, None] * g + s.f_ext * dem.load_factor(dp.load_ramp, state.t)
     if f_fluid is not None:
@@ -260,7 +288,8 @@ def disc_forces(phys: Physics, params: Params, state: State, dt, f_fluid=None,
     acc = jnp.where(free[:, None], force / inertia[:, None], 0.0)
     alpha = jnp.where(free, torque / s.inertia, 0.0)
     return state.replace(solid=s.replace(acc=acc, alpha=alpha, shear=shear,
-                                         wall_shear=wall_shear), bonds=b, walls=walls)
+                                         wall_shear=wall_shear, reaction=reaction),
+                         bonds=b, walls=walls)
 
 
 def _dem_list_update(phys: Physics, state: State, rebuild_now=None) -> State:
@@ -325,11 +354,15 @@ def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, w
     if check_list:
         state = _dem_list_update(phys, state)
     before = state.walls.reaction if phys.wall_reaction and state.walls is not None else None
+    held_before = state.solid.reaction
     state = disc_forces(phys, params, state, dt, f_fluid, wet, m_added)
-    if before is not None:          # the sub-steps' mean: the impulse over the step / Δt
+    share = dt / params.dt          # the sub-steps' mean: the impulse over the step / Δt
+    if before is not None:
         walls = state.walls
-        state = state.replace(walls=walls.replace(
-            reaction=before + (dt / params.dt) * walls.reaction))
+        state = state.replace(walls=walls.replace(reaction=before + share * walls.reaction))
+    if held_before is not None:
+        s = state.solid
+        state = state.replace(solid=s.replace(reaction=held_before + share * s.reaction))
     s = state.solid
     with jax.named_scope("step.solid_kick"):
         return state.replace(solid=s.replace(v=s.v + 0.5 * dt * s.acc,
@@ -360,9 +393,12 @@ def discs(phys: Physics, params: Params, state: State) -> State:
     walls = state.walls
     if phys.wall_reaction and walls is not None:    # the sub-steps add up their mean
         walls = walls.replace(reaction=jnp.zeros_like(walls.reaction))
+    solid = state.solid
+    if solid.reaction is not None:                  # and so do the held discs' reactions
+        solid = solid.replace(reaction=jnp.zeros_like(solid.reaction))
     # the loop carries the DEM part of the state only
     part = State(t=state.t, step=state.step, fluid=None, boundary=None, nbrs=None,
-                 status=state.status, solid=state.solid, bonds=state.bonds,
+                 status=state.status, solid=solid, bonds=state.bonds,
                  solid_nbrs=state.solid_nbrs, walls=walls)
 
     def one(k, p):

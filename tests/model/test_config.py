@@ -35,6 +35,19 @@ def test_bad_physics_options_are_refused(tiny_tank, opts, word):
         Physics.for_scene(tiny_tank, **opts)
 
 
+def test_disc_reaction_takes_held_discs_only():
+    """Physics.disc_reaction lists held (clamped or kinematic) discs, sorted; a free disc,
+    an index out of range or a bare number is refused with the allowed set."""
+    sc = coarse_plate()
+    fixed = np.flatnonzero(sc.solid.fixed)
+    free = int(np.flatnonzero(~sc.solid.fixed)[0])
+    got = Physics.for_scene(sc, disc_reaction=[int(fixed[1]), int(fixed[0])]).disc_reaction
+    assert got == (int(fixed[0]), int(fixed[1]))
+    for bad in ([free], [sc.solid.n], int(fixed[0])):
+        with pytest.raises(ParameterError, match=r"disc_reaction = .*held at the start"):
+            Physics.for_scene(sc, disc_reaction=bad)
+
+
 def test_neighbour_skin_follows_the_step():
     """0.4 h at the larger step of a scene without a fluid-coupled structure, 0.25 h with
     one (option fsi), which keeps physics.md's step."""

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from fpsi_jax import cases
-from fpsi_jax.build import disc_block
+from fpsi_jax.build import disc_block, merge
 from fpsi_jax.model.config import Physics
 from fpsi_jax.model.params import BondParams, DemParams, Params
 from fpsi_jax.model.scene import BondBlock, Scene, WallBlock
@@ -884,3 +884,47 @@ def test_wall_force_on_some_rows_equals_those_rows_of_all():
     np.testing.assert_allclose(some[a:b], every[a:b], rtol=1e-12, atol=1e-15)
     assert not some[:a].any() and not some[b:].any()
     assert _moving_tank()[2].boundary.force is None
+
+
+# --- the free discs' force on held discs (Physics.disc_reaction) -------------------------
+@x64
+def test_held_discs_take_minus_the_force_their_contacts_and_bonds_put_on_the_free_discs():
+    """A hex cantilever (its clamp held) with a kinematic block of discs pressed into its
+    underside, no gravity, load or damping, discs shaken: the held discs' recorded force
+    and moment about the origin are minus the free discs' contact and bond forces and
+    their moments x × F + τ, over two evaluations (the contact histories of a held disc's
+    row and of the free disc's row grow alike), to round-off."""
+    beam = cases.build("cantilever", packing="hex", variant="free", d=0.0025)
+    so = beam.solid
+    r = float(so.radius[0])
+    low = float(np.min(so.x[:, 1]))
+    block = disc_block(np.array([[0.03, low - 1.9 * r], [0.035, low - 1.95 * r],
+                                 [0.04, low - 1.98 * r]]), r, 7800.0, fixed=np.ones(3, bool))
+    solid, _ = merge(dataclasses.replace(so, f_ext=np.zeros_like(so.f_ext)), block)
+    sc = dataclasses.replace(beam, solid=solid, params=dataclasses.replace(
+        beam.params, gravity=(0.0, 0.0), dem=dataclasses.replace(
+            beam.params.dem, alpha=0.0, damping=0.0, beta_n=0.2, beta_s=0.2))).validate()
+    held = tuple(int(i) for i in np.flatnonzero(solid.fixed))
+    phys, p, st = init_x64(sc, x64=True, disc_reaction=held)
+    rng = np.random.default_rng(3)
+    s = st.solid
+    n = s.x.shape[0]
+    free = ~np.asarray(s.fixed)
+    x = s.x + A(np.where(free[:, None], rng.normal(0.0, 2e-5, (n, 2)), 0.0))
+    st = st.replace(solid=s.moved_to(x).replace(
+        v=A(np.where(free[:, None], rng.normal(0.0, 0.05, (n, 2)), 0.0)),
+        omega=A(np.where(free, rng.normal(0.0, 5.0, n), 0.0))))
+    st = st.replace(solid_nbrs=st.solid_nbrs.update(x - jnp.asarray(phys.dem_neighbors.origin)))
+    forces = jax.jit(lambda s_: stages.disc_forces(phys, p, s_, 1e-6))
+    for _ in range(2):
+        st = forces(st)
+        s = st.solid
+        f = np.asarray(s.acc) * np.asarray(s.mass)[:, None]
+        tq = np.asarray(s.alpha) * np.asarray(s.inertia)
+        xs = np.asarray(s.x)
+        m_free = xs[:, 0] * f[:, 1] - xs[:, 1] * f[:, 0] + tq
+        r = np.asarray(s.reaction)
+        assert np.abs(r[free]).max() == 0.0 and np.abs(r[~free, 1]).max() > 1.0
+        want = -np.array([f[free, 0].sum(), f[free, 1].sum(), m_free[free].sum()])
+        scale = np.abs(f[free]).max() * (1.0 + np.abs(xs).max())
+        np.testing.assert_allclose(r.sum(axis=0), want, atol=1e-12 * scale)
