@@ -228,6 +228,11 @@ def _group(path, tname, item, i):
         if not sel.any():
             fail(path, tname, "key 'clamp': the region holds none of its discs", item, i)
         move(blk, lambda p, sel=sel: sel, (0.0, 0.0))
+    if item.get("move") is not None:
+        sel = _region_mask(blk.x, item["move"]["region"])
+        if not sel.any():
+            fail(path, tname, "key 'move': the region holds none of its discs", item, i)
+        move(blk, lambda p, sel=sel: sel, item["move"]["velocity"])
     if item.get("load") is not None:
         sel = _region_mask(blk.x, item["load"]["region"])
         if not sel.any():

@@ -185,6 +185,13 @@ def convert(key, v):
         region = convert(Key("region", "region", "m", None, ""), v["region"])
         f = convert(Key("force", "point", "N", None, ""), v["force"])
         return {"region": region, "force": f}
+    if t == "move":
+        if not (isinstance(v, dict) and set(v) == {"region", "velocity"}):
+            raise ValueError("must be a table {region = [...], velocity = [vx, vy]}")
+        from .schema import Key
+        region = convert(Key("region", "region", "m", None, ""), v["region"])
+        u = convert(Key("velocity", "point", "m/s", None, ""), v["velocity"])
+        return {"region": region, "velocity": u}
     raise AssertionError(t)
 
 

@@ -10,7 +10,8 @@ Types: ``float`` (a number in the key's SI unit, or a string with a unit, ``"3.5
 (corners), ``polygon`` [[x, y], …] (≥ 3 vertices), ``polyline`` [[x, y], …] (≥ 2),
 ``points`` [[x, y], …] (≥ 1), ``region`` (a box, a polygon, or a list of boxes/polygons),
 ``range`` [a, b] with a < b, ``list`` (of strings), ``load`` (a table
-``{region = …, force = [Fx, Fy]}``), ``vectors`` (a point, or one point per disc).
+``{region = …, force = [Fx, Fy]}``), ``move`` (a table ``{region = …, velocity = [vx,
+vy]}``), ``vectors`` (a point, or one point per disc).
 """
 from __future__ import annotations
 
@@ -158,6 +159,10 @@ _DISC_COMMON = (
         "the floor's DEM wall by contact and friction)"),
     Key("load", "load", "N", None, "external force {region = …, force = [Fx, Fy]} shared "
         "equally by the discs in the region (ramped by contacts.load_ramp)"),
+    Key("move", "move", "m/s", None, "prescribed motion {region = …, velocity = [vx, vy]}: "
+        "the discs in the region move at this constant velocity whatever the forces, "
+        "without rotating, held to the rest by their bonds (a specimen compressed by its "
+        "own end rows; a force probe with that `region` reads the load they carry)"),
 )
 
 table("structure", True, "A bonded body: discs glued by parallel bonds between touching "
@@ -203,7 +208,7 @@ table("kinematic", True, "Discs moving at a prescribed constant velocity whateve
       "`polygon` or `points`. A force probe on them reads all that pushes them: the "
       "fluid's force and the free discs' contacts (a platen's load, the blows of "
       "grains or debris on a gate), what the drive must overcome.",
-      *[k for k in _DISC_COMMON if k.name not in ("clamp", "load")],
+      *[k for k in _DISC_COMMON if k.name not in ("clamp", "load", "move")],
       Key("mass_model", "str", "", "lattice", "disc mass model", choices=MASS),
       Key("coupled", "bool", "", True, "takes part in the fluid sums (physics.coupling)"))
 
@@ -215,8 +220,9 @@ table("contacts", False, "DEM contact law (W10–W17, K25). kn and ks default to
       "through contacts, by a platen of kinematic discs or an obstacle's walls, is loaded "
       "through that soft interface (a 4 × 8 cm specimen of E 50 MPa compressed by a "
       "platen came out at 5 MPa), and a stiffer `kn` here stiffens the bonded pairs in "
-      "compression too; such a load is better given as a `load`, or in Python by moving "
-      "the structure's own end rows (`fpsi_jax.build.move`).",
+      "compression too; such a load is better given as a `load`, or by moving the "
+      "structure's own end rows (`move`; a force probe on them reads the load: a "
+      "square lattice of E 10 MPa squeezed so read 10.0 MPa).",
       _pos("kn", "N/m", None, "normal contact stiffness per unit thickness"),
       Key("ks", "float", "N/m", None, "shear contact stiffness (default ½ kn, or the "
           "material's)", lo=0.0),

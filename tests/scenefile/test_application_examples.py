@@ -1,7 +1,8 @@
-"""The three application examples (examples/flood_bridge_debris.toml, sloshing_baffle.toml,
+"""The application examples (examples/flood_bridge_debris.toml, sloshing_baffle.toml,
 sediment_flushing.toml) run as a user would run them, at a coarse resolution: the fluid spacing
-doubled (the discs as in the file) and the run cut to the time the example is about. Each
-test checks what the example's plot shows, not only that the run finished.
+doubled (the discs as in the file) and the run cut to the time the example is about; the dry
+compression.toml as it is. Each test checks what the example's plot shows, not only that the
+run finished.
 
 Full resolution: ``python experiments/example_cases.py`` (experiments/results/examples/)."""
 import pathlib
@@ -32,7 +33,7 @@ def run(case):
 
 
 def test_example_files_fit_in_forty_lines():
-    for name in ("flood_bridge_debris", "sloshing_baffle", "sediment_flushing"):
+    for name in ("flood_bridge_debris", "sloshing_baffle", "sediment_flushing", "compression"):
         assert len((EXAMPLES / f"{name}.toml").read_text().splitlines()) <= 40, name
 
 
@@ -81,3 +82,27 @@ def test_lifted_gate_flushes_the_deposit_downstream():
     assert bed[0][10:].max() == 0.0 and bed[-1][10:].max() > 0.005
     # the grains at the gate face move downstream by centimetres
     assert p["gate_face"][-1, 0] > 0.02
+
+
+def test_compressed_specimen_rises_linearly_peaks_and_fails():
+    """examples/compression.toml (558 discs, 11k steps): the load on the driven top row rises
+    linearly with its travel, at a slope of 1.33 E over 0.5–1.5 % of the peak's time (a
+    hexagonal lattice of these springs, infinite, has √3(1 − ν')E = 1.42 E with
+    ν' = (1 − κ)/(3 + κ), κ = k_s/k_n = 1/(2(1 + ν)), Griffiths & Mustoe 2001; the free
+    sides' discs have fewer bonds), then peaks with no bond broken and drops by more than
+    90 % as the bonds crack."""
+    path = str(EXAMPLES / "compression.toml")
+    case = scenefile.load(path)
+    res, p = run(case)
+    t = np.asarray(res.times)
+    y = np.asarray(case.scene.solid.x)[:, 1][np.asarray(case.scene.solid.fixed)]
+    strain = -p["platen"][:, 1] / (y.max() - y.min())
+    stress = p["load"][:, 1] / 0.02
+    peak = int(np.argmax(stress))
+    early = (t > 0.2 * t[peak]) & (t < 0.8 * t[peak])
+    slope, icpt = np.polyfit(strain[early], stress[early], 1)
+    assert slope / 100e6 == pytest.approx(1.33, abs=0.05)
+    fit = slope * strain[early] + icpt
+    assert np.abs(stress[early] - fit).max() < 0.02 * stress[peak]      # linear
+    assert p["cracks"][peak, 0] == 0 and p["cracks"][-1, 0] > 50
+    assert stress[-1] < 0.1 * stress[peak]

@@ -126,6 +126,13 @@ rho = 1100.0
     ("clamp misses", lambda t: edit(t, "clamp = [0.2, 0.07, 0.21, 0.08]",
                                     "clamp = [0.3, 0.07, 0.31, 0.08]"),
      ["[[structure]] 'gate'", "key 'clamp'", "holds none"]),
+    ("move misses", lambda t: edit(t, "clamp = [0.2, 0.07, 0.21, 0.08]",
+                                   "clamp = [0.2, 0.07, 0.21, 0.08]\nmove = {region = "
+                                   "[0.3, 0.0, 0.31, 0.01], velocity = [0.0, 0.1]}"),
+     ["[[structure]] 'gate'", "key 'move'", "holds none"]),
+    ("move without velocity", lambda t: edit(t, "clamp = [0.2, 0.07, 0.21, 0.08]",
+                                             "move = {region = [0.2, 0.0, 0.21, 0.01]}"),
+     ["[[structure]] 'gate'", "key 'move'", "{region = [...], velocity = [vx, vy]}"]),
     ("two materials", lambda t: t + """
 [[structure]]
 name = "second"
