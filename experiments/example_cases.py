@@ -1,10 +1,10 @@
-"""Runs the three application examples (cases that are not validation benchmarks) at their
+"""Runs the four application examples (cases that are not validation benchmarks) at their
 full resolution, as a user would: ``fpsi run examples/<name>.toml --plot``.
 
 Writes under ``experiments/results/examples/``: each case's probe plot and snapshot
 (``<name>.png``, ``<name>_snapshot.png``), its probes as CSV, and ``examples.json`` with
 the run's size, wall time and the figures each plot is about (deck load, log travel, baffle
-tip deflection, flushing cone). The HDF5 output goes to a temporary folder (tens of MB); the CSV keeps 400 rows.
+tip deflection, flushing cone, the specimen's peak load). The HDF5 output goes to a temporary folder (tens of MB); the CSV keeps 400 rows.
 
     python experiments/example_cases.py [--only sediment_flushing] [--t-end 0.1]
 """
@@ -23,7 +23,7 @@ import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 OUT = ROOT / "experiments" / "results" / "examples"
-CASES = ("flood_bridge_debris", "sloshing_baffle", "sediment_flushing")
+CASES = ("flood_bridge_debris", "sloshing_baffle", "sediment_flushing", "compression")
 
 
 def read_probes(path):
@@ -66,6 +66,13 @@ def figures(name, cols):
         drop = [b[0] - b[-1] for b in bed]
         return {"gate_face_grains_mean_ux_m": ux[-1], "cone_depth_m": max(drop),
                 "max_deposit_downstream_m": -min(drop)}
+    if name == "compression":
+        fy, uy = col(cols, "load.Fy"), col(cols, "platen.uy")
+        cracks = col(cols, "cracks")
+        k = max(range(len(fy)), key=lambda i: fy[i])
+        return {"peak_load_N_per_m": fy[k], "peak_travel_m": -uy[k],
+                "bonds_broken_at_peak": cracks[k], "bonds_broken_at_end": cracks[-1],
+                "end_load_N_per_m": fy[-1]}
     return {}
 
 
