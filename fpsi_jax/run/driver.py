@@ -326,6 +326,10 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
     probes      :class:`~fpsi_jax.run.probes.Probe` list recorded every step: returned in
                 ``Result.probes``, written to ``/probes`` of the output file and to
                 ``<output>_probes.csv`` (up to the last good chunk if the run goes unstable)
+
+    A run that goes unstable or is interrupted raises with what it recorded up to its last
+    good chunk on the exception: ``observations``, ``probes`` (as in :class:`Result`) and
+    ``times`` (the steps' end times), None where nothing was recorded.
     resume      an output file of a stopped run of the same scene and settings: the run
                 continues from its last complete frame (every leaf of the state restored,
                 neighbour lists and contact history included; bitwise what the
@@ -378,7 +382,7 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
                                            observe))
 
         phys, state = first_state(scene, phys, p, beside=compile_chunk)
-    done = int(state.step)
+    done = start = int(state.step)
     writer = None
     if output:
         writer = Writer(output, scene, phys, params, probes, run_info=run_info,
@@ -428,6 +432,10 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
                 raise err
     except SimulationError as e:
         status, message = "unstable", str(e)
+        _keep_history(e, obs_chunks, probes, done, dt, start)
+        raise
+    except Interrupted as e:
+        _keep_history(e, obs_chunks, probes, done, dt, start)
         raise
     except io.OutputError as e:
         status, message = "failed", str(e)
@@ -445,11 +453,7 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
         if output and probes:
             _write_probe_csv(output, probes)
     wall = time.perf_counter() - t0
-    observations, probe_values = None, None
-    if obs_chunks:
-        observations = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *obs_chunks)
-        if probes:
-            observations, probe_values = observations
+    observations, probe_values = _stacked(obs_chunks, probes)
     return Result(state=state, physics=phys, params=params, n_steps=done, wall_s=wall,
                   compile_s=compile_s, setup_s=t0 - t_setup,
                   rebuilds=int(state.status.rebuilds), dem_rebuilds=int(state.status.dem_rebuilds),
@@ -457,6 +461,20 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
                   first_chunk_steps=first, probes=probe_values, regrowth_s=regrowth_s,
                   regrowth_chunks=regrowth_chunks,
                   steps_run=done - (ck and int(ck.leaves[".step"]) or 0))
+
+
+def _stacked(obs_chunks, probes):
+    """(observations, probe values) stacked over the chunks' steps, None where none."""
+    if not obs_chunks:
+        return None, None
+    observations = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *obs_chunks)
+    return tuple(observations) if probes else (observations, None)
+
+
+def _keep_history(err, obs_chunks, probes, done, dt, start):
+    """What a stopped run recorded, on its exception (``simulate``'s docstring)."""
+    err.observations, err.probes = _stacked(obs_chunks, probes)
+    err.times = (np.arange(start, done) + 1) * dt if obs_chunks else None
 
 
 @dataclass

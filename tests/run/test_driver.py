@@ -24,15 +24,21 @@ def test_unstable_run_stops_with_diagnosis_and_keeps_good_frames(tmp_path):
     sc = cases.build("dam_break", dx=0.02, c0=3.0, t_end=0.5)
     out = tmp_path / "bad.h5"
     with pytest.raises(SimulationError) as info:
-        simulate(sc, output=str(out), every=0.02, progress=False)
+        simulate(sc, output=str(out), every=0.02, progress=False,
+                 observe=lambda s: s.fluid.x[0, 1])
     e = info.value
     msg = str(e)
+    # what observe recorded up to the last good chunk comes with the exception
+    assert e.observations.shape == e.times.shape and e.probes is None
+    assert e.times[-1] < e.time and e.times.size == round(e.times[-1] / (e.times[0]))
+    assert np.isfinite(e.observations).all()
     assert "step" in msg and "t =" in msg and "fluid particle" in msg
     assert e.step > 0 and e.particle >= 0 and e.quantity
     run = io.read(out)
     assert run.status == "unstable"
     assert run.frames >= 2                                 # the good frames are there
     assert run.time[-1] < e.time
+    assert e.times[-1] == pytest.approx(run.time[-1], rel=1e-6)   # the last good chunk
     for k, a in run.fluid.items():
         assert np.all(np.isfinite(a)), k                   # and no NaN was written
     with h5py.File(out) as f:
