@@ -126,6 +126,9 @@ class Parking:
 
 
 
+#: scene-file and builder keywords whose Physics option has another name
+ALIASES = {"coupling": "fsi"}
+
 #: Physics options that are switches (true/false)
 SWITCHES = ("xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
             "artificial_viscosity", "wall_repulsion", "x64", "fpi", "lubrication",
@@ -426,7 +429,10 @@ class Physics:
         opts = {**scene.options, **overrides}
         unknown = set(opts) - set(cls.OPTIONS)
         if unknown:
-            raise ParameterError(f"unknown Physics option(s) {sorted(unknown)}; "
+            named = [f"{k!r} is the option {ALIASES[k]!r} here" for k in sorted(unknown)
+                     if k in ALIASES]
+            hint = f" ({'; '.join(named)})" if named else ""
+            raise ParameterError(f"unknown Physics option(s) {sorted(unknown)}{hint}; "
                                  f"allowed: {', '.join(cls.OPTIONS)}")
         opts = check_options(opts)
         if "wall_force" in opts:

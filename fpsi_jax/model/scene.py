@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ParameterError
+from .errors import ParameterError, fmt
 from .options import Side, choose
 from .params import Params
 
@@ -226,7 +226,7 @@ class Scene:
         self.open_sides = open_sides(self.open_sides)
         lo, hi = np.asarray(self.domain_lo, float), np.asarray(self.domain_hi, float)
         if not np.all(hi > lo):
-            raise ParameterError(f"domain_hi {tuple(hi)} must exceed domain_lo {tuple(lo)}")
+            raise ParameterError(f"domain_hi {_point(hi)} must exceed domain_lo {_point(lo)}")
         for phase in ("fluid", "boundary", "solid"):
             blk = getattr(self, phase)
             if blk is None:
@@ -238,21 +238,23 @@ class Scene:
                 a = np.asarray(a)
                 want = (n, 2) if k in ("x", "v", "f_ext") else (n,)
                 if a.shape != want:
-                    raise ParameterError(f"{phase}.{k} has shape {a.shape}, expected {want}")
+                    raise ParameterError(f"{phase}.{k} has shape {a.shape} and {phase}.x "
+                                         f"{np.shape(blk.x)}: allowed {want}, one row per "
+                                         "particle")
                 if not np.all(np.isfinite(a)):
                     raise ParameterError(f"{phase}.{k} contains non-finite values")
             positive = ("mass", "radius", "inertia") if phase == "solid" else ("mass", "h", "rho")
             for k in positive:
                 if np.any(np.asarray(getattr(blk, k)) <= 0):
                     i = int(np.argmax(np.asarray(getattr(blk, k)) <= 0))
-                    raise ParameterError(f"{phase}.{k}[{i}] = {getattr(blk, k)[i]!r} out of "
-                                         "range; allowed (0, inf)")
+                    raise ParameterError(f"{phase}.{k}[{i}] = {fmt(getattr(blk, k)[i])} out "
+                                         "of range; allowed (0, inf)")
             out = np.any((blk.x < lo) | (blk.x >= hi), axis=1)
             if out.any():
                 i = int(np.argmax(out))
                 raise ParameterError(
-                    f"{phase} particle {i} at {tuple(blk.x[i])} lies outside the domain "
-                    f"[{tuple(lo)}, {tuple(hi)})")
+                    f"{phase} particle {i} at {_point(blk.x[i])} lies outside the domain "
+                    f"[{_point(lo)}, {_point(hi)})")
         if self.fluid is None and self.solid is None:
             raise ParameterError("scene has neither fluid nor solid particles")
         if self.fluid is not None and self.params.sph is None:
@@ -319,6 +321,11 @@ class Scene:
             "n_grain": (int(self.solid.grain_indices().size)
                         if self.solid is not None and self.options.get("fpi") else 0),
         })
+
+
+def _point(p) -> str:
+    """(x, y) as a user writes it, without numpy's np.float64(...)."""
+    return "(" + ", ".join(fmt(float(v)) for v in np.ravel(p)) + ")"
 
 
 def open_sides(sides) -> tuple:

@@ -113,6 +113,9 @@ def setup(scene: Scene, dt: float | None = None, params: Params | None = None,
     # traced with x64 on, where weakly typed constants promote parts of the step to float64
     jax.config.update("jax_enable_x64", bool(phys.x64))
     params = (params or scene.params)
+    for name, value in params.flat().items():    # the bounds below read numbers
+        if name != "gravity" and np.ndim(value) != 0:
+            raise ParameterError(f"{name} has shape {np.shape(value)}; allowed one number")
     opts = {**scene.options, **physics_overrides}
     given = opts.get("dem_substeps") is not None
     n_sub = int(opts["dem_substeps"]) if given else 1
@@ -141,7 +144,8 @@ MAX_STEPS = 2 ** 31 - 1
 
 
 def check_steps(t_end: float, dt: float) -> int:
-    """The number of steps to ``t_end``; ParameterError past what the step counter holds."""
+    """The number of steps to ``t_end``, ⌈t_end/Δt⌉ (the last ends at or just past
+    t_end); ParameterError past what the step counter holds."""
     n = math.ceil(t_end / dt - 1e-9)
     if n > MAX_STEPS:
         raise ParameterError(f"t_end = {fmt(t_end)} s needs {n:.3g} steps of {fmt(dt)} s; "
@@ -266,8 +270,9 @@ def check_rollout(end: State, params: Params) -> None:
     raise_if_unstable(st, float(params.dt))
     if bool(st.overflow):
         raise RuntimeError(f"a neighbour list overflowed at step {int(st.redo_step)} of this "
-                           "rollout: pairs were left out from there on; allocate the lists "
-                           "with more room or run it with fpsi_jax.run.simulate")
+                           "rollout: pairs were left out from there on; take the lists as a "
+                           "forward run grows them, phys = simulate(scene, t_end=...)"
+                           ".physics, then init_state(scene, phys, p) and rollout(phys, ...)")
 
 
 @dataclass
@@ -313,7 +318,8 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
              unsafe_dt: bool = False, probes=None, resume: str | None = None,
              overwrite: bool = False, run_info: dict | None = None,
              **physics_overrides) -> Result:
-    """Run ``scene`` to ``t_end`` (default scene.t_end) in compiled chunks. Runs on the host
+    """Run ``scene`` to ``t_end`` (default scene.t_end: ⌈t_end/Δt⌉ steps, the last ending at
+    or just past it; ``Result.times``) in compiled chunks. Runs on the host
     (chunks, list regrowth, checks, output), so it is not differentiable: ``jax.grad``
     goes through :func:`fpsi_jax.solver.rollout` (README, Quickstart: Python).
 

@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 
 from ..model.config import Physics
+from ..model.errors import number
 from ..model.params import Params
 from ..model.state import State
 from . import order, stages
@@ -63,6 +64,8 @@ def rollout(phys: Physics, state: State, params: Params, n_steps: int,
     8·10⁸⁵ against a central difference of 1.6·10⁴; with ``dem.damping`` the two agree to
     10⁻⁸).
     """
+
+    n_steps = int(number("n_steps", n_steps, 0, None, integer=True))
 
     def run(state, observe):
         def body(s, _):

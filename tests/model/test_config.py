@@ -26,6 +26,7 @@ def test_physics_is_hashable_and_lists_mechanisms(tiny_tank):
     ({"boundary_pressure": "magic"}, "boundary_pressure"),
     ({"h_margin": 5.0}, "h_margin"),
     ({"bogus": 1}, "bogus"),
+    ({"coupling": "pressure_gradient"}, "'coupling' is the option 'fsi' here"),
     ({"pair_block": -1}, "pair_block"),
     ({"pair_block": 2.5}, "pair_block"),
     ({"rebuild_block": -1}, "rebuild_block"),

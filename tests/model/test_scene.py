@@ -13,7 +13,17 @@ from fpsi_jax.model.scene import BondBlock, Scene
 def test_scene_rejects_particles_outside_domain():
     sc = cases.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1)
     sc.fluid.x[3] = (10.0, 10.0)
-    with pytest.raises(ParameterError, match="fluid particle 3 .* outside the domain"):
+    with pytest.raises(ParameterError, match=r"fluid particle 3 at \(10, 10\) lies outside "
+                                             r"the domain \[\(-"):
+        sc.validate()
+
+
+def test_scene_names_the_array_whose_rows_disagree_with_the_positions():
+    sc = cases.build("hydrostatic_tank", dx=0.02, depth=0.1, width=0.1)
+    n = sc.fluid.n
+    sc.fluid.v = np.zeros((n + 1, 2))
+    with pytest.raises(ParameterError, match=rf"fluid.v has shape \({n + 1}, 2\) and fluid.x "
+                                             rf"\({n}, 2\): allowed \({n}, 2\)"):
         sc.validate()
 
 

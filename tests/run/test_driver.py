@@ -317,8 +317,17 @@ def test_check_rollout_says_what_simulate_would_have_refused(tiny_tank):
     assert e.value.step == int(bad.status.step) and e.value.step <= 200
     cut = good.replace(status=good.status.replace(overflow=jnp.asarray(True),
                                                   redo_step=jnp.asarray(12, jnp.int32)))
-    with pytest.raises(RuntimeError, match="overflowed at step 12"):
+    with pytest.raises(RuntimeError, match="overflowed at step 12.*simulate.*physics"):
         driver.check_rollout(cut, p)
+    with pytest.raises(ParameterError, match=r"n_steps = 2.5 is not an integer"):
+        forward.rollout(phys, st, p, 2.5)
+
+
+def test_setup_refuses_an_array_where_a_parameter_is_one_number(tiny_tank):
+    p = tiny_tank.params
+    bad = p.replace(sph=p.sph.replace(mu=np.full(5, 1e-3)))
+    with pytest.raises(ParameterError, match=r"sph.mu has shape \(5,\); allowed one number"):
+        setup(tiny_tank, params=bad)
 
 
 def test_the_chunk_compiled_beside_the_set_up_is_the_one_the_run_uses(tiny_tank):
