@@ -68,8 +68,10 @@ def _resume_args(args):
     if args.scene not in (None, info["scene"]):
         raise ParameterError(f"--resume: {path!r} is a run of {info['scene']!r}, not "
                              f"{args.scene!r}")
+    plot = args.plot                    # --plot on the resume asks for one too
     for key in ("scene", "set", "t_end", "every", "dt", "unsafe_dt", "plot"):
         setattr(args, key, info.get(key))
+    args.plot = bool(plot or args.plot)
     args.out = path
     return args
 
@@ -164,7 +166,9 @@ def cmd_run(args):
     if out:
         extra = f" and {os.path.splitext(out)[0]}_probes.csv" if probes else ""
         print(f"wrote {out}, {io.sidecar(out)}{extra}")
-    if want_plot:
+    if want_plot and args.resume:           # the run's steps are in the file, not in res
+        _plot_stopped(case, scene, out, png, args, unsafe, phys, finished=True)
+    elif want_plot:
         os.makedirs(os.path.dirname(os.path.abspath(png)), exist_ok=True)
         if case is not None:
             from .scenefile.plot import plot_probes
@@ -176,16 +180,19 @@ def cmd_run(args):
     return 0
 
 
-def _plot_stopped(case, scene, out, png, args, unsafe, phys):
-    """``--plot`` for a run that stopped early: its probes and snapshot up to the last good
-    frame of its file (a case with a plot of its own gets none: those plots read the whole
-    run)."""
+def _plot_stopped(case, scene, out, png, args, unsafe, phys, finished=False):
+    """``--plot`` for a run that stopped early, or (``finished``) one resumed from its file:
+    its probes and snapshot up to the last good frame of the file (a registered case with a
+    plot of its own gets none: those plots read the whole run from one process)."""
     from . import cases
     from .cases.plotting import default_plot
     from .run.driver import stopped
 
     if not out or not os.path.exists(out) or (case is None and scene.name in cases.PLOTS):
-        print("no plot: the run stopped before its end", file=sys.stderr)
+        why = ("the run was resumed: its own plot reads the whole run from one process "
+               "(fpsi run without --resume draws it)" if finished
+               else "the run stopped before its end")
+        print(f"no plot: {why}", file=sys.stderr)
         return
     try:
         res = stopped(scene, out, args.dt, unsafe, **phys)
@@ -209,7 +216,7 @@ def _plot_stopped(case, scene, out, png, args, unsafe, phys):
                          "before the stop)")
     for line in lines:
         print(f"{line} (up to the last good frame, t = {float(res.state.t):.6g} s)"
-              if line.startswith("wrote") else line)
+              if line.startswith("wrote") and not finished else line)
 
 
 def cmd_validate(args):

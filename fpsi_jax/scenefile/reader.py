@@ -105,11 +105,41 @@ def quantity(key, text: str) -> float:
     return value * f
 
 
+def _with_units(key, v):
+    """``v`` with every string inside its lists read as a quantity in ``key``'s unit
+    (``["0 mm", "10 cm"]``)."""
+    if isinstance(v, list):
+        return [_with_units(key, c) for c in v]
+    return quantity(key, v) if isinstance(v, str) and key.unit else v
+
+
+def _table(name, v, keys, convert_one):
+    """A small inline table {a = …, b = …} with exactly ``keys``, each converted by
+    ``convert_one(key, value)``; ValueError naming the missing, unknown or bad entry."""
+    form = "{" + ", ".join(f"{k} = [...]" for k in keys) + "}"
+    if not isinstance(v, dict):
+        raise ValueError(f"must be a table {form}")
+    missing, unknown = [k for k in keys if k not in v], sorted(set(v) - set(keys))
+    if missing or unknown:
+        what = (f"needs {', '.join(repr(k) for k in missing)}" if missing
+                else f"has unknown key(s) {', '.join(repr(k) for k in unknown)}")
+        raise ValueError(f"{what}: allowed a table {form}")
+    out = {}
+    for k in keys:
+        try:
+            out[k] = convert_one(k, v[k])
+        except ValueError as e:
+            raise ValueError(f": {k} {e}") from None
+    return out
+
+
 def convert(key, v):
     """``v`` checked against ``key``'s type and range; returns the value or raises
     ValueError with what is wrong."""
     t = key.type
     unit = f" {key.unit}" if key.unit else ""
+    if t in ("point", "range", "box", "polygon", "polyline", "points", "vectors", "region"):
+        v = _with_units(key, v)
     if t == "float" and isinstance(v, str) and key.unit:
         v = quantity(key, v)
     if t in ("float", "int"):
@@ -178,20 +208,13 @@ def convert(key, v):
                               else [tuple(float(c) for c in p) for p in r] for r in v]}
         raise ValueError(f"= {v!r} is not a region: a box [x0, y0, x1, y1], a polygon "
                          f"[[x, y], ...] or a list of them [{key.unit}]")
-    if t == "load":
-        if not (isinstance(v, dict) and set(v) == {"region", "force"}):
-            raise ValueError("must be a table {region = [...], force = [Fx, Fy]}")
+    if t in ("load", "move"):
         from .schema import Key
-        region = convert(Key("region", "region", "m", None, ""), v["region"])
-        f = convert(Key("force", "point", "N", None, ""), v["force"])
-        return {"region": region, "force": f}
-    if t == "move":
-        if not (isinstance(v, dict) and set(v) == {"region", "velocity"}):
-            raise ValueError("must be a table {region = [...], velocity = [vx, vy]}")
-        from .schema import Key
-        region = convert(Key("region", "region", "m", None, ""), v["region"])
-        u = convert(Key("velocity", "point", "m/s", None, ""), v["velocity"])
-        return {"region": region, "velocity": u}
+        kinds = {"region": Key("region", "region", "m", None, ""),
+                 "force": Key("force", "point", "N", None, ""),
+                 "velocity": Key("velocity", "point", "m/s", None, "")}
+        keys = ("region", "force") if t == "load" else ("region", "velocity")
+        return _table(key.name, v, keys, lambda k, x: convert(kinds[k], x))
     raise AssertionError(t)
 
 
@@ -226,7 +249,8 @@ def _check_table(path, tname, raw, index=None):
         try:
             out[k] = convert(known[k], v)
         except ValueError as e:
-            fail(path, tname, f"key {k!r} {e}", raw, index)
+            sep = "" if str(e).startswith(":") else " "
+            fail(path, tname, f"key {k!r}{sep}{e}", raw, index)
     for k in keys:
         if k.name not in out:
             if k.required:

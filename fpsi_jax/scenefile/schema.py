@@ -149,11 +149,12 @@ _DISC_COMMON = (
     Key("points", "points", "m", None, "explicit disc centres"),
     _pos("d", "m", None, "disc diameter (with box/polygon; with points: 2 × radius)"),
     _pos("radius", "m", None, "disc radius (with points)"),
-    Key("packing", "str", "", None, "packing of box/polygon", choices=PACKING),
+    Key("packing", "str", "", None, "packing of box/polygon (default: 'hex' for grains, "
+        "'square' otherwise)", choices=PACKING),
     _pos("rho", "kg/m³", REQUIRED, "density"),
     _pos("thickness", "m", 1.0, "out-of-plane thickness t of the discs' mass"),
     Key("velocity", "vectors", "m/s", (0.0, 0.0), "initial velocity (one vector, or one per "
-        "disc)"),
+        "disc); of a [[kinematic]] body, the constant velocity it moves at"),
     Key("clamp", "region", "m", None, "discs in this region are held fixed (a structure "
         "standing on the floor is fixed to it only by a clamp; without one it rests on "
         "the floor's DEM wall by contact and friction)"),
@@ -161,15 +162,19 @@ _DISC_COMMON = (
         "equally by the discs in the region (ramped by contacts.load_ramp)"),
     Key("move", "move", "m/s", None, "prescribed motion {region = …, velocity = [vx, vy]}: "
         "the discs in the region move at this constant velocity whatever the forces, "
-        "without rotating, held to the rest by their bonds (a specimen compressed by its "
-        "own end rows; a force probe with that `region` reads the load they carry)"),
+        "without rotating; a structure's other discs follow through their bonds (a "
+        "specimen compressed by its own end rows; a force probe with that `region` reads "
+        "the load they carry)"),
 )
 
 table("structure", True, "A bonded body: discs glued by parallel bonds between touching "
       "neighbours, bond and contact stiffness from E and ν (K42–K43, W's 1 % contact "
       "split), mass per area ρ. Give `box`, `polygon` or `points`.",
       *_DISC_COMMON,
-      _pos("E", "Pa", None, "Young's modulus (required unless [bonds] gives kn and ks)"),
+      _pos("E", "Pa", None, "Young's modulus of the bonds (K42; required unless [bonds] "
+           "gives kn and ks): a square lattice loaded along its rows has E, a hexagonal one "
+           "is stiffer (√3(1 − ν')E = 1.42 E for ν = 0.3 in an infinite lattice, "
+           "Griffiths & Mustoe 2001; 1.33 E in examples/compression.toml)"),
       Key("nu", "float", "", 0.3, "Poisson's ratio", lo=-1.0, hi=0.5, lo_open=True,
           hi_open=True),
       Key("plane_strain", "bool", "", False, "map E/(1−ν²): a slice of a plate spanning "
@@ -391,7 +396,9 @@ built or compiled, with one line naming the file, the table and the key, and exi
 
     error: flume.toml: [[structure]] 'gate': key 'E' = -1.0 is out of range; allowed (0.0, inf) Pa
 
-So are water, discs or an obstacle beside the tank's side walls or under its floor, a
+So are water or discs beside the tank's side walls or under its floor, an obstacle wholly
+outside the tank (one reaching into a wall or under the floor is accepted: its particles
+there only thicken the wall), a
 probe's point or x outside the domain, a probe key its kind does not use (`body` on a
 pressure probe), and a probe's `reference` curve that is not a CSV or has no column
 measuring that probe.
@@ -425,7 +432,9 @@ Types: `float` (a number, or a string with a unit), `int`, `bool`, `str`, `point
 `box` [x0, y0, x1, y1] (corners), `polygon` [[x, y], …] (≥ 3 vertices), `polyline`
 (≥ 2), `points` (≥ 1), `region` (a box, a polygon, or a list of them), `range` [a, b] with
 a < b, `list` (strings, or one comma-separated string), `load`
-`{region = …, force = [Fx, Fy]}`, `vectors` (one [vx, vy] or one per disc).
+`{region = …, force = [Fx, Fy]}`, `move` `{region = …, velocity = [vx, vy]}`, `vectors`
+(one [vx, vy] or one per disc). A component of a point, box, polygon or vector may carry
+its unit too: `["20 cm", 0.0, "210 mm", 0.08]`.
 """
 
 DATA = """## Data files (references and `fpsi calibrate --data`)

@@ -84,8 +84,10 @@ def test_a_signal_stops_at_the_end_of_a_chunk_and_resume_finishes_bitwise(
     if sig != signal.SIGINT:
         return                          # resuming is the same after either signal
     r = subprocess.run([sys.executable, "-m", "fpsi_jax.cli", "run", "--resume", str(out),
-                        "--quiet"], capture_output=True, text=True, timeout=300)
+                        "--quiet", "--plot"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
+    # --plot on the resume is heard; the dam break's own plot reads a whole run
+    assert "no plot: the run was resumed" in r.stderr
     k, t, got = final_frame(out)
     k0, t0, want = final_frame(reference)
     assert (k, t) == (k0, t0) and io.read(out).status == "finished"

@@ -2,6 +2,7 @@
 ``fpsi run``, nothing written, nothing compiled."""
 import os
 
+import numpy as np
 import pytest
 
 from fpsi_jax import cli, scenefile
@@ -132,7 +133,13 @@ rho = 1100.0
      ["[[structure]] 'gate'", "key 'move'", "holds none"]),
     ("move without velocity", lambda t: edit(t, "clamp = [0.2, 0.07, 0.21, 0.08]",
                                              "move = {region = [0.2, 0.0, 0.21, 0.01]}"),
-     ["[[structure]] 'gate'", "key 'move'", "{region = [...], velocity = [vx, vy]}"]),
+     ["[[structure]] 'gate'", "key 'move' needs 'velocity'",
+      "{region = [...], velocity = [...]}"]),
+    ("move with a bad velocity", lambda t: edit(t, "clamp = [0.2, 0.07, 0.21, 0.08]",
+                                                "move = {region = [0.2, 0.0, 0.21, 0.01], "
+                                                "velocity = [0.0, \"2 kg\"]}"),
+     ["[[structure]] 'gate'", "key 'move': velocity = '2 kg': unit 'kg' is not a unit of "
+      "m/s"]),
     ("two materials", lambda t: t + """
 [[structure]]
 name = "second"
@@ -197,6 +204,17 @@ def test_the_good_file_loads_and_quantities_with_units_convert(tmp_path):
     assert case.materials["gate"]["E"] == pytest.approx(1.0e6)     # the space is optional
     assert [p.name for p in case.probes] == ["tip"]
     assert case.scene.solid.n == 2 * 16
+
+
+def test_components_of_points_boxes_and_regions_may_carry_units(tmp_path):
+    path = tmp_path / "flume.toml"
+    text = edit(GOOD, "box = [0.2, 0.0, 0.21, 0.08]", 'box = ["20 cm", 0.0, "210 mm", 0.08]')
+    text = edit(text, "region = [0.2, 0.0, 0.21, 0.005]", 'region = [0.2, 0.0, "21 cm", "5mm"]')
+    case = scenefile.load(str(path.write_text(text) and path))
+    assert case.scene.solid.n == 2 * 16
+    plain = tmp_path / "plain.toml"
+    plain.write_text(GOOD)
+    np.testing.assert_array_equal(case.scene.solid.x, scenefile.load(str(plain)).scene.solid.x)
 
 
 def test_errors_are_parameter_errors_in_python_too(tmp_path):
