@@ -209,8 +209,8 @@ def test_force_on_a_clamp_is_the_weight_and_moment_of_the_arm_it_holds(tmp_path)
     rest (local damping α = 0.7): the probe on the clamp's discs reads what its bonds and
     contacts take, the weight of the free discs W = Σ m g and the moment of their weights
     about the clamp, −Σ (x_i − c_x) m_i g at their resting positions, within 10⁻⁴. (In
-    float32 the same run stalls 2.7 % off this balance: the local damping's sign(v) on
-    velocities of 10⁻⁴ m/s holds a net force; physics.md, *Local damping*.)"""
+    float32 the same run creeps there an order of magnitude more slowly, 2.7 % off at
+    0.3 s: physics.md, local damping.)"""
     from fpsi_jax import scenefile
     path = tmp_path / "arm.toml"
     path.write_text(CLAMPED_ARM)
