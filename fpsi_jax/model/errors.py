@@ -99,11 +99,11 @@ class SimulationError(RuntimeError):
         hint = ""
         if voidage is not None and voidage < FLOORED_VOIDAGE:
             hint = ("; pore fluid of a packed bed under a flow can go unstable at its own "
-                    "voidage (docs/physics.md, Packed beds): [physics] wall_images = false "
-                    "keeps that voidage and leaves the pores by the walls less tight (water "
-                    "running onto a dry bed, the flushing example); [physics] voidage = "
-                    f"\"mapped\" with eps_floor = {FLOORED_VOIDAGE} runs it floored, as the "
-                    "seeds did")
+                    "voidage (docs/physics.md, Packed beds): [physics] voidage = \"mapped\" "
+                    f"with eps_floor = {FLOORED_VOIDAGE} runs it floored, as the seeds did "
+                    "(water running onto a dry bed ran so); [physics] wall_images = false "
+                    "keeps its own voidage and leaves the pores by the walls less tight, "
+                    "which sometimes suffices (the flushing example)")
         super().__init__(f"run unstable at step {step} (t = {t:.6g} s): {phase} particle "
                          f"{particle}: {quantity}{at}{where}{hint}")
 

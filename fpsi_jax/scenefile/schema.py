@@ -292,9 +292,10 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
           hi=1.0, hi_open=True),
       Key("wall_images", "bool", "", True, "the grains' mirror images in the DEM walls count "
           "in the voidage (the part of a grain's kernel inside a wall goes back to the "
-          "fluid's side: a bed at rest loads the floor right); false for water running onto "
-          "a dry bed, whose pores by the floor then go unstable (examples/"
-          "sediment_flushing.toml)"),
+          "fluid's side: a bed at rest loads the floor right); false makes the pores by the "
+          "floor less tight, which let the flush of examples/sediment_flushing.toml run; "
+          "water running onto a dry bed can go unstable either way and runs floored "
+          "(voidage 'mapped', eps_floor 0.8: docs/physics.md, Packed beds)"),
       Key("bond_section", "str", "", "slab", "bond cross-section",
           choices=("slab", "circular")),
       Key("kernel", "str", "", "wendland", "SPH kernel", choices=("wendland", "cubic")),
