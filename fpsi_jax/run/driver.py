@@ -64,8 +64,10 @@ class Result:
 
     @property
     def times(self) -> np.ndarray:
-        """Times after each step (the rows of ``observations`` and ``probes``)."""
-        return (np.arange(self.n_steps) + 1) * float(self.params.dt)
+        """Times after each step this call ran (the rows of ``observations`` and
+        ``probes``; a resumed run's from where it resumed)."""
+        first = self.n_steps - (self.n_steps if self.steps_run is None else self.steps_run)
+        return (np.arange(first, self.n_steps) + 1) * float(self.params.dt)
 
     @property
     def throughput_includes_compile(self) -> bool:

@@ -227,8 +227,12 @@ def test_resume_restores_contacts_and_bonds_bitwise(tmp_path):
     with h5py.File(part, "a") as f:     # as a file written before the lists' need tallies
         for name in io._RUN_TALLIES:
             del f["checkpoint"][name]
-    res = simulate(sc, t_end=40 * every, every=every, resume=str(part), progress=False)
+    res = simulate(sc, t_end=40 * every, every=every, resume=str(part), progress=False,
+                   observe=lambda s: s.t)
     assert res.steps_run == 500 and res.n_steps == 1000
+    # what this call recorded is its own 500 steps, at their times
+    np.testing.assert_allclose(res.times, np.asarray(res.observations), rtol=1e-6)
+    assert res.times[0] == pytest.approx(501 * dt)
     a, b = io.read(whole), io.read(part)
     assert a.frames == b.frames == 41
     for phase in ("solid", "bonds"):
