@@ -152,6 +152,8 @@ def run_file(args) -> int:
                     steps=args.steps, optimizer=args.optimizer, jacobian=args.jacobian)
     case = uc.build(sf, s, physics)                     # every check, nothing compiled yet
     log = (lambda *a: None) if args.quiet else print
+    for line in s.notes:
+        log(line)
     try:
         res = fit(case.calibration, optimizer=s.optimizer, learning_rate=args.lr,
                   max_steps=s.steps, noise=args.noise, progress=not args.quiet,

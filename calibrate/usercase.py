@@ -61,7 +61,7 @@ import time
 
 import numpy as np
 
-from fpsi_jax.model.errors import ParameterError
+from fpsi_jax.model.errors import ParameterError, fmt
 from fpsi_jax.scenefile import data as datafile
 from fpsi_jax.scenefile.reader import FileError, fail
 
@@ -98,6 +98,7 @@ class Settings:
     steps: int = 30
     optimizer: str = "lm"
     jacobian: str = "ad"
+    notes: tuple = ()                 # lines fpsi calibrate prints before the fit
 
 
 def _bad(sf, key, msg):
@@ -123,7 +124,20 @@ def settings(sf, **flags) -> Settings:
     table's relative to the scene file)."""
     table = dict(sf.calibration or {})
     got = {k: (flags[k] if flags.get(k) not in (None, [], ()) else table.get(k))
-           for k in Settings.__dataclass_fields__}
+           for k in Settings.__dataclass_fields__ if k != "notes"}
+    notes = []
+    dem = sf.scene.params.dem
+    alpha = float(dem.alpha) if dem is not None else 0.0
+    if alpha > 0:                 # K25's sign(v): derivatives through it are not the loss's
+        if got["optimizer"] in ("adam", "sgd"):
+            _bad(sf, "optimizer", f" = {got['optimizer']!r} follows the gradient, and the "
+                 f"local damping [contacts] alpha = {fmt(alpha)} makes it wrong (sign(v)); "
+                 "fit with 'lm', or damp with [contacts] damping instead")
+        if got["jacobian"] is None:
+            got["jacobian"] = "fd"
+            notes.append(f"note: [contacts] alpha = {fmt(alpha)} (local damping): derivatives "
+                         "through its sign(v) are not the loss's, so the fit takes a secant "
+                         "Jacobian (--jacobian fd); [contacts] damping keeps them exact")
     for k, v in DEFAULTS.items():
         if got[k] is None:
             got[k] = v
@@ -150,7 +164,7 @@ def settings(sf, **flags) -> Settings:
                     target=got["target"], start=tuple(split_list(got["start"])),
                     start_from_file=flags.get("start") in (None, [], ()),
                     steps=int(got["steps"]), optimizer=got["optimizer"],
-                    jacobian=got["jacobian"])
+                    jacobian=got["jacobian"], notes=tuple(notes))
 
 
 def _range(sf, key, v):

@@ -379,8 +379,9 @@ table("calibration", False, "Defaults for `fpsi calibrate <file>` (each has a co
       Key("start", "list", "", None, "start values, name=value (default: the file's)"),
       Key("steps", "int", "", 30, "optimiser steps (max)", lo=1),
       Key("optimizer", "str", "", "lm", "optimiser", choices=("lm", "adam", "sgd")),
-      Key("jacobian", "str", "", "ad", "'ad' (forward mode) or 'fd' (secant, for chaotic "
-          "long coupled runs)", choices=("ad", "fd")))
+      Key("jacobian", "str", "", None, "'ad' (forward mode) or 'fd' (secant, for chaotic "
+          "long coupled runs); default 'ad', or 'fd' where [contacts] alpha > 0 (local "
+          "damping's sign(v) has no useful derivative)", choices=("ad", "fd")))
 
 
 INTRO = """# Scene files

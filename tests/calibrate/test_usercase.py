@@ -52,6 +52,23 @@ def test_short_and_dotted_leaf_names_and_bounds(sf):
     assert "stiffness" in uc.fittable(sf) and "dem.damping" in uc.fittable(sf)
 
 
+def test_local_damping_takes_the_secant_jacobian_and_refuses_gradient_optimisers():
+    """K25's local damping switches with sign(v): a forward-mode Jacobian through it is not
+    the loss's (a squeezed specimen with alpha 0.7: d(load)/d(stiffness) −9.1e4 against a
+    central difference of +1.5e3), so a file with alpha > 0 fits with the secant Jacobian
+    unless --jacobian says otherwise, with a note, and adam/sgd are refused."""
+    import dataclasses
+    sfa = scenefile.load(str(SYNTHETIC))
+    p = sfa.scene.params
+    sfa.scene = dataclasses.replace(sfa.scene, params=p.replace(dem=p.dem.replace(alpha=0.7)))
+    s = _settings(sfa, fit=["E"])
+    assert s.jacobian == "fd" and "alpha = 0.7" in s.notes[0] and "secant" in s.notes[0]
+    assert _settings(sfa, fit=["E"], jacobian="ad").jacobian == "ad"     # as asked
+    with pytest.raises(scenefile.FileError, match="optimizer.*alpha = 0.7"):
+        _settings(sfa, fit=["E"], optimizer="adam")
+    assert _settings(scenefile.load(str(SYNTHETIC)), fit=["E"]).notes == ()
+
+
 def test_start_values_of_the_file_follow_the_fitted_names(sf):
     # the file starts E at 2e7 and damping at 12; --fit E alone ignores the damping start
     s = _settings(sf, fit=["E"])
