@@ -83,10 +83,11 @@ FLOORED_VOIDAGE = 0.8
 class SimulationError(RuntimeError):
     """A run went unstable. Attributes: step, time, particle, phase, quantity, output,
     position (the particle's (x, y) in the last good frame, or None) and voidage (a fluid
-    particle's ε there among grains, else None)."""
+    particle's ε there among grains, else None). ``set_up``: the remedies the run already
+    has ('floored', 'no_wall_images'), which the hint then leaves out."""
 
     def __init__(self, step, t, particle, quantity, phase="fluid", output=None, t_good=None,
-                 position=None, voidage=None):
+                 position=None, voidage=None, set_up=()):
         self.step, self.time, self.particle = step, t, particle
         self.phase, self.quantity, self.output = phase, quantity, output
         self.position, self.voidage = position, voidage
@@ -97,13 +98,15 @@ class SimulationError(RuntimeError):
                   f"frame{eps})")
         where = f"; frames up to t = {t_good:.6g} s are in {output}" if output else ""
         hint = ""
-        if voidage is not None and voidage < FLOORED_VOIDAGE:
+        if voidage is not None and voidage < FLOORED_VOIDAGE and "floored" not in set_up:
             hint = ("; pore fluid of a packed bed under a flow can go unstable at its own "
                     "voidage (docs/physics.md, Packed beds): [physics] voidage = \"mapped\" "
                     f"with eps_floor = {FLOORED_VOIDAGE} runs it floored, as the seeds did "
-                    "(water running onto a dry bed ran so); [physics] wall_images = false "
-                    "keeps its own voidage and leaves the pores by the walls less tight, "
-                    "which sometimes suffices (the flushing example)")
+                    "(water running onto a dry bed ran so)")
+            if "no_wall_images" not in set_up:
+                hint += ("; [physics] wall_images = false keeps its own voidage and leaves "
+                         "the pores by the walls less tight, which sometimes suffices (the "
+                         "flushing example)")
         super().__init__(f"run unstable at step {step} (t = {t:.6g} s): {phase} particle "
                          f"{particle}: {quantity}{at}{where}{hint}")
 

@@ -30,7 +30,8 @@ import numpy as np
 
 from ..model import limits
 from ..model.config import Physics
-from ..model.errors import Interrupted, ParameterError, SimulationError, fmt, number
+from ..model.errors import (FLOORED_VOIDAGE, Interrupted, ParameterError, SimulationError,
+                            fmt, number)
 from ..model.params import Params
 from ..model.scene import Scene
 from ..model.state import STATUS_CODES, State
@@ -240,7 +241,8 @@ def reallocate(phys: Physics, state: State) -> State:
 
 
 def raise_if_unstable(status, dt: float, output: str | None = None,
-                      t_good: float | None = None, good: State | None = None) -> None:
+                      t_good: float | None = None, good: State | None = None,
+                      phys: Physics | None = None) -> None:
     """Raise :class:`SimulationError` (step, time, particle, quantity) if ``status`` (a
     chunk's :class:`~fpsi_jax.model.state.Status`) records a bad particle; with ``good``,
     the chunk's start State (the last good frame), also where that particle was then and,
@@ -256,9 +258,12 @@ def raise_if_unstable(status, dt: float, output: str | None = None,
             position = tuple(float(v) for v in np.asarray(body.x[i]))
             if phase == "fluid" and good.fpi is not None:
                 voidage = float(good.fpi.eps[i])
+    set_up = () if phys is None else (
+        ("floored",) * (phys.eps_floor >= FLOORED_VOIDAGE)
+        + ("no_wall_images",) * (not phys.wall_images))
     raise SimulationError(int(status.step), int(status.step) * dt, i, STATUS_CODES[code],
                           phase=phase, output=output, t_good=t_good, position=position,
-                          voidage=voidage)
+                          voidage=voidage, set_up=set_up)
 
 
 def check_rollout(end: State, params: Params) -> None:
@@ -307,7 +312,8 @@ def run_until_fits(attempt: Callable, phys: Physics, state: State, dt: float, *,
             phys = grow(phys, end)
             state = reallocate(phys, state)
             continue
-        raise_if_unstable(end.status, dt, output, t_good=float(state.t), good=state)
+        raise_if_unstable(end.status, dt, output, t_good=float(state.t), good=state,
+                          phys=phys)
         return Chunk(phys=phys, state=state, end=end, result=result, regrowths=k)
     raise RuntimeError(f"the neighbour lists still overflowed after {max_regrowths} "
                        "regrowths")

@@ -79,6 +79,13 @@ def test_an_unstable_pore_particle_of_a_packed_bed_is_pointed_to_the_floored_set
     assert 'voidage = "mapped" with eps_floor = 0.8' in str(e) and "Packed beds" in str(e)
     assert "eps_floor" not in str(SimulationError(3, 0.1, 5, "x", position=(0.1, 0.01),
                                                   voidage=0.95))
+    # a remedy the run already has is not offered again
+    assert "wall_images = false" in str(e)
+    done = SimulationError(3, 0.1, 5, "x", position=(0.1, 0.01), voidage=0.18,
+                           set_up=("no_wall_images",))
+    assert "wall_images = false" not in str(done) and "eps_floor = 0.8" in str(done)
+    assert "Packed beds" not in str(SimulationError(3, 0.1, 5, "x", position=(0.1, 0.01),
+                                                    voidage=0.18, set_up=("floored",)))
 
 
 def test_simulate_writes_frames_and_reports_speed(tmp_path, tiny_tank):
