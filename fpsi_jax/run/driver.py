@@ -340,10 +340,6 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
     probes      :class:`~fpsi_jax.run.probes.Probe` list recorded every step: returned in
                 ``Result.probes``, written to ``/probes`` of the output file and to
                 ``<output>_probes.csv`` (up to the last good chunk if the run goes unstable)
-
-    A run that goes unstable or is interrupted raises with what it recorded up to its last
-    good chunk on the exception: ``observations``, ``probes`` (as in :class:`Result`) and
-    ``times`` (the steps' end times), None where nothing was recorded.
     resume      an output file of a stopped run of the same scene and settings: the run
                 continues from its last complete frame (every leaf of the state restored,
                 neighbour lists and contact history included; bitwise what the
@@ -351,6 +347,10 @@ def simulate(scene: Scene, t_end: float | None = None, output: str | None = None
     run_info    JSON-able record of how the run was started, kept in the file (``fpsi run``
                 stores its arguments there for ``--resume``)
     physics_overrides   Physics options (e.g. delta_sph=True, x64=True)
+
+    A run that goes unstable or is interrupted raises with what it recorded up to its last
+    good chunk on the exception: ``observations``, ``probes`` (as in :class:`Result`) and
+    ``times`` (the steps' end times), None where nothing was recorded.
 
     SIGINT and SIGTERM stop the run at the end of the current chunk with
     :class:`~fpsi_jax.model.errors.Interrupted` (the file says ``status = interrupted``); a
