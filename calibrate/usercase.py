@@ -127,17 +127,24 @@ def settings(sf, **flags) -> Settings:
            for k in Settings.__dataclass_fields__ if k != "notes"}
     notes = []
     dem = sf.scene.params.dem
-    alpha = float(dem.alpha) if dem is not None else 0.0
-    if alpha > 0:                 # K25's sign(v): derivatives through it are not the loss's
+    # K25's local damping and the rolling resistance switch with a sign: derivatives
+    # through them are not the loss's
+    signs = [] if dem is None else [
+        (key, float(v)) for key, v in (("alpha", dem.alpha), ("rolling_friction", dem.mu_roll))
+        if v is not None and float(v) > 0]
+    if signs:
+        key, value = signs[0]
+        what = f"[contacts] {key} = {fmt(value)}"
         if got["optimizer"] in ("adam", "sgd"):
-            _bad(sf, "optimizer", f" = {got['optimizer']!r} follows the gradient, and the "
-                 f"local damping [contacts] alpha = {fmt(alpha)} makes it wrong (sign(v)); "
-                 "fit with 'lm', or damp with [contacts] damping instead")
+            _bad(sf, "optimizer", f" = {got['optimizer']!r} follows the gradient, and {what} "
+                 "makes it wrong (its sign switches); fit with 'lm'"
+                 + (", or damp with [contacts] damping instead" if key == "alpha" else ""))
         if got["jacobian"] is None:
             got["jacobian"] = "fd"
-            notes.append(f"note: [contacts] alpha = {fmt(alpha)} (local damping): derivatives "
-                         "through its sign(v) are not the loss's, so the fit takes a secant "
-                         "Jacobian (--jacobian fd); [contacts] damping keeps them exact")
+            notes.append(f"note: {what}: derivatives through its sign switch are not the "
+                         "loss's, so the fit takes a secant Jacobian (--jacobian fd)"
+                         + ("; [contacts] damping keeps them exact" if key == "alpha"
+                            else ""))
     for k, v in DEFAULTS.items():
         if got[k] is None:
             got[k] = v

@@ -85,6 +85,10 @@ class DemParams:
                 differentiate; a mode of angular frequency ω decays with damping ratio
                 ζ = c/(2ω), so α ≈ πζ of K25 corresponds to c ≈ 2αω/π)
     load_ramp   external loads grow linearly from 0 over this time [s] (0: applied at once)
+    mu_roll     rolling resistance μ_r (not in the seeds; None: none, no term compiled): a
+                couple M_r = −μ_r R* F_n sign(ω_A − ω_B) on each disc of a contact,
+                R* = R_A R_B/(R_A + R_B) (R_A against a wall), the constant directional
+                torque of Ai et al. (2011, model A; LIGGGHTS' rolling_friction cdt)
     """
 
     kn: Any = 1.0e6
@@ -95,9 +99,12 @@ class DemParams:
     alpha: Any = 0.0
     damping: Any = 0.0
     load_ramp: Any = 0.0
+    mu_roll: Any = None
 
     def validate(self):
         require("dem.kn", self.kn, 0.0, None, lo_open=True)
+        if self.mu_roll is not None:
+            require("dem.mu_roll", self.mu_roll, 0.0, None)
         require("dem.ks", self.ks, 0.0, None)
         require("dem.mu", self.mu, 0.0, None)
         require("dem.beta_n", self.beta_n, 0.0, 1.0, hi_open=True)

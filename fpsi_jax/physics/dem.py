@@ -74,11 +74,22 @@ def _pair_geometry_xy(dxx, dxy, valid, ra, rb):
     return dxx * inv, dxy * inv, jnp.where(valid & ok, ra + rb - d, -1.0)
 
 
+def rolling_torque(mu_roll, fn, ra, rb, omega_a, omega_b):
+    """The rolling resistance on A (Ai et al. 2011, model A, the constant directional
+    torque): M_r = −μ_r R* max(F_n, 0) sign(ω_A − ω_B), R* = R_A R_B/(R_A + R_B), R_A
+    against a wall (``rb`` = 0.0); B takes −M_r. It opposes the discs' relative rolling
+    whatever its speed, so a disc at rest under it jitters by sign flips of its ω (Ai et
+    al.'s known defect of model A)."""
+    r_eff = ra if isinstance(rb, float) and rb == 0.0 else ra * rb / (ra + rb)
+    return -mu_roll * r_eff * jnp.maximum(fn, 0.0) * jnp.sign(omega_a - omega_b)
+
+
 def _contact_pairs(dp, nx, ny, delta, ra, rb, dvx, dvy, omega_a, omega_b, m, shear, dt):
     """The contact law for every (row, slot) pair with normal (n_x, n_y) (A → B) and
     overlap ``delta``: (the force on B, F_n n + F_s t, as its x and y components, the lever
-    ℓ_A = R_A − δ/2, the new history), each (n, K); the force on A is the opposite, and
-    its torque −F_s ℓ_A.
+    ℓ_A = R_A − δ/2, the new history, the rolling couple on A, :func:`rolling_torque`, or
+    0.0 without ``dp.mu_roll``), each (n, K); the force on A is the opposite, and its
+    torque −F_s ℓ_A + M_r.
 
     (dvx, dvy) = v_B − v_A; every pair quantity is an (n, K) array of one component (XLA:CPU
     emits a sum over a last axis of 2, as a dot product of (n, K, 2) arrays, as a reduction
@@ -90,17 +101,19 @@ def _contact_pairs(dp, nx, ny, delta, ra, rb, dvx, dvy, omega_a, omega_b, m, she
     vs = dvx * tx + dvy * ty - omega_b * lb - omega_a * la
     fn, fs, hist = linear_contact(dp.kn, dp.ks, dp.mu, dp.beta_n, dp.beta_s, delta, vn, vs,
                                   shear, m, dt)
-    return fn * nx + fs * tx, fn * ny + fs * ty, fs, la, hist
+    roll = (0.0 if dp.mu_roll is None
+            else rolling_torque(dp.mu_roll, fn, ra, rb, omega_a, omega_b))
+    return fn * nx + fs * tx, fn * ny + fs * ty, fs, la, hist, roll
 
 
 def _contact_sum(dp, nx, ny, delta, ra, rb, dvx, dvy, omega_a, omega_b, m, shear, dt):
     """:func:`_contact_pairs` summed over slots onto the row body A. Returns (force (n, 2),
     torque (n,), new history (n, K), overlap (n, K))."""
-    fbx, fby, fs, la, hist = _contact_pairs(dp, nx, ny, delta, ra, rb, dvx, dvy, omega_a,
-                                            omega_b, m, shear, dt)
+    fbx, fby, fs, la, hist, roll = _contact_pairs(dp, nx, ny, delta, ra, rb, dvx, dvy,
+                                                  omega_a, omega_b, m, shear, dt)
     # three (n, K) terms summed over the slot axis in one variadic reduction: a sum of the
     # (n, K, 2) force over its middle axis ran 3× slower on XLA:CPU
-    fx, fy, tq = sum_neighbours(fbx, fby, fs * la)
+    fx, fy, tq = sum_neighbours(fbx, fby, fs * la - roll)
     return -jnp.stack([fx, fy], axis=-1), -tq, hist, delta
 
 
@@ -195,12 +208,12 @@ def wall_contacts(dp, x, v, omega, radius, mass, a, b, shear, dt, side=None,
             jnp.broadcast_to(mass[:, None], shape), shear, dt)
     if reaction is None:
         return _contact_sum(*args)
-    fbx, fby, fs, la, hist = _contact_pairs(*args)
-    fx, fy, tq = sum_neighbours(fbx, fby, fs * la)
+    fbx, fby, fs, la, hist, roll = _contact_pairs(*args)
+    fx, fy, tq = sum_neighbours(fbx, fby, fs * la - roll)
     on = reaction[:, None]
     cx, cy = x[:, 0, None] + la * nx, x[:, 1, None] + la * ny
-    per_wall = jnp.stack([jnp.sum(jnp.where(on, q, 0.0), axis=0)
-                          for q in (fbx, fby, cx * fby - cy * fbx)], axis=-1)
+    per_wall = jnp.stack([jnp.sum(jnp.where(on, q, 0.0), axis=0)    # the wall takes −M_r
+                          for q in (fbx, fby, cx * fby - cy * fbx - roll)], axis=-1)
     return -jnp.stack([fx, fy], axis=-1), -tq, hist, delta, per_wall
 
 

@@ -531,7 +531,7 @@ def compose(spec: dict, path: str) -> SceneFile:
             mat[0]["ks"] if mat and cont["kn"] is None else 0.5 * kn)
         dem = DemParams(kn=kn, ks=ks, mu=cont["friction"], beta_n=cont["beta_n"],
                         beta_s=cont["beta_s"], alpha=cont["alpha"], damping=cont["damping"],
-                        load_ramp=cont["load_ramp"])
+                        load_ramp=cont["load_ramp"], mu_roll=cont["rolling_friction"])
     if bonds is not None:
         bt = {**_defaults("bonds"), **{k: v for k, v in bond_tbl.items() if v is not None}}
         kn_b = bt.get("kn") if bt.get("kn") is not None else (mat[0]["bond_kn"] if mat else None)

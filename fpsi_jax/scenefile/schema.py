@@ -241,7 +241,12 @@ table("contacts", False, "DEM contact law (W10–W17, K25). kn and ks default to
           "with `damping`", lo=0.0, hi=1.0, hi_open=True),
       Key("damping", "float", "1/s", 0.0, "mass-proportional viscous damping c", lo=0.0),
       Key("load_ramp", "float", "s", 0.0, "external loads grow linearly over this time",
-          lo=0.0))
+          lo=0.0),
+      Key("rolling_friction", "float", "", None, "rolling resistance μ_r (not in the seeds; "
+          "default none): a couple μ_r R* F_n against each contact's relative rolling, "
+          "R* = R_A R_B/(R_A + R_B) (Ai et al. 2011, model A; LIGGGHTS' cdt). Round discs "
+          "without it roll on: a dry column collapse runs out too far and a heap slumps. "
+          "Its sign(ω) has no useful derivative (as alpha)", lo=0.0))
 
 table("bonds", False, "Parallel-bond constants (K17–K22); each key overrides what the "
       "structures' material gives.",

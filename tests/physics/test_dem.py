@@ -197,6 +197,25 @@ def test_remap_history_permuted_slots_and_new_capacity():
     np.testing.assert_array_equal(got, [[2.0, 1.0], [1.0, 0], [3.0, 2.0], [3.0, 0]])
 
 
+def test_rolling_resistance_couple_between_two_discs():
+    """μ_r = 0.2 on the pair of the test above (F_n = 100 N, R* = R_A R_B/(R_A + R_B) =
+    0.006): each disc also takes ∓μ_r R* F_n = ∓0.12 N·m against its rolling relative to
+    the other (ω_A − ω_B = 5 > 0: A's couple is negative), equal and opposite; forces and
+    shear unchanged; none while the two roll alike."""
+    dp = DemParams(kn=1.0e5, ks=5.0e4, mu=0.3, mu_roll=0.2)
+    args = dict(va=(0.0, 0.1), vb=(0.0, -0.2), wa=2.0, wb=-3.0, shear=2.0)
+    (f, tq, hist, _), _ = two_discs(dp=dp, **args)
+    (f0, tq0, hist0, _), _ = two_discs(**args)
+    m_r = 0.2 * (0.010 * 0.015 / 0.025) * 100.0
+    assert m_r == pytest.approx(0.12)
+    np.testing.assert_allclose(tq, tq0 + np.array([-m_r, m_r]), rtol=RTOL)
+    np.testing.assert_allclose(f, f0, rtol=RTOL)
+    np.testing.assert_allclose(hist, hist0, rtol=RTOL)
+    (_, tq1, _, _), _ = two_discs(dp=dp, wa=2.0, wb=2.0)
+    (_, tq2, _, _), _ = two_discs(wa=2.0, wb=2.0)
+    np.testing.assert_allclose(tq1, tq2, rtol=RTOL)
+
+
 # --- walls -------------------------------------------------------------------------------
 R = 0.01
 
@@ -251,6 +270,25 @@ def test_wall_reaction_is_the_discs_force_on_the_wall_at_the_contact_point():
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
+def test_rolling_resistance_on_a_wall_opposes_the_spin_and_reaches_the_wall():
+    """A disc spinning at ω = 5 on the floor (F_n = 100 N, R* = R against a wall) takes
+    −μ_r R F_n = −0.1 N·m more with μ_r = 0.1; the floor's recorded moment takes +0.1."""
+    dp0 = DemParams(kn=1.0e5, ks=5.0e4, mu=0.3)
+    dp = DemParams(kn=1.0e5, ks=5.0e4, mu=0.3, mu_roll=0.1)
+    kw = dict(v=A([[0.0, 0.0]]), w=A([5.0]), radius=A([R]), mass=A([0.9]))
+
+    def run(p):
+        return [np.asarray(o) for o in dem.wall_contacts(
+            p, A([[0.05, 0.009]]), kw["v"], kw["w"], kw["radius"], kw["mass"],
+            A([[0.0, 0.0]]), A([[0.1, 0.0]]), A(np.zeros((1, 1))), 1e-4,
+            reaction=jnp.asarray([True]))]
+
+    with_r, without = run(dp), run(dp0)
+    np.testing.assert_allclose(with_r[1] - without[1], [-0.1 * R * 100.0], rtol=RTOL)
+    np.testing.assert_allclose(with_r[4][0, 2] - without[4][0, 2], 0.1 * R * 100.0,
+                               rtol=RTOL)
+
+
 def test_wall_reaction_conserves_momentum_and_angular_momentum():
     """Discs against the four walls of a box and a free segment inside it: the walls'
     forces sum to minus the discs', and their moments about the origin to minus the
@@ -261,7 +299,7 @@ def test_wall_reaction_conserves_momentum_and_angular_momentum():
     x = np.array([[0.05, 0.008], [0.093, 0.05], [0.05, 0.095], [0.006, 0.03],
                   [0.05, 0.058], [0.006, 0.006]])
     k = len(x)
-    dp = DemParams(kn=1.0e5, ks=5.0e4, mu=0.3, beta_n=0.2, beta_s=0.1)
+    dp = DemParams(kn=1.0e5, ks=5.0e4, mu=0.3, beta_n=0.2, beta_s=0.1, mu_roll=0.1)
     f, tq, _, delta, per_wall = dem.wall_contacts(
         dp, A(x), A(rng.normal(0, 0.3, (k, 2))), A(rng.normal(0, 5, k)), A(np.full(k, R)),
         A(np.full(k, 0.9)), a, b, A(rng.normal(0, 1.0, (k, 5))), 1e-4,
