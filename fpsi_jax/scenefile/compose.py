@@ -157,7 +157,16 @@ def _positions(path, tname, item, i):
             item["d"] / 2 if item["d"] is not None else None)
         if R is None:
             fail(path, tname, "key 'radius' (or 'd') is required with 'points'", item, i)
-        return np.asarray(item["points"], float), R, None
+        x = np.asarray(item["points"], float)
+        if isinstance(R, tuple):
+            if tname == "structure":
+                fail(path, tname, "key 'radius' takes one number for a structure (its bond "
+                     "material has one disc size)", item, i)
+            if len(R) != len(x):
+                fail(path, tname, f"key 'radius' has {len(R)} radii for {len(x)} points",
+                     item, i)
+            R = np.asarray(R, float)
+        return x, R, None
     d = item["d"]
     if d is None:
         fail(path, tname, f"key 'd' is required with {how!r} (disc diameter, m)", item, i)

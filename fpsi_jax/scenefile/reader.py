@@ -209,6 +209,12 @@ def convert(key, v):
                               else [tuple(float(c) for c in p) for p in r] for r in v]}
         raise ValueError(f"= {v!r} is not a region: a box [x0, y0, x1, y1], a polygon "
                          f"[[x, y], ...] or a list of them [{key.unit}]")
+    if t == "radii":
+        many = isinstance(v, list)
+        vals = [quantity(key, c) if isinstance(c, str) else c for c in (v if many else [v])]
+        if not (vals and all(_number(c) and math.isfinite(c) and c > 0 for c in vals)):
+            raise ValueError(f"= {v!r} is not a positive number or a list of them [{key.unit}]")
+        return tuple(float(c) for c in vals) if many else float(vals[0])
     if t in ("load", "move"):
         from .schema import Key
         kinds = {"region": Key("region", "region", "m", None, ""),

@@ -150,7 +150,8 @@ _DISC_COMMON = (
     Key("polygon", "polygon", "m", None, "fill a polygon with a packing of discs `d`"),
     Key("points", "points", "m", None, "explicit disc centres"),
     _pos("d", "m", None, "disc diameter (with box/polygon; with points: 2 × radius)"),
-    _pos("radius", "m", None, "disc radius (with points)"),
+    Key("radius", "radii", "m", None, "disc radius (with points): one number, or one per "
+        "point (a polydisperse set; a structure takes one)"),
     Key("packing", "str", "", None, "packing of box/polygon (default: 'hex' for grains, "
         "'square' otherwise)", choices=PACKING),
     _pos("rho", "kg/m³", REQUIRED, "density"),
@@ -442,7 +443,7 @@ Types: `float` (a number, or a string with a unit), `int`, `bool`, `str`, `point
 (≥ 2), `points` (≥ 1), `region` (a box, a polygon, or a list of them), `range` [a, b] with
 a < b, `list` (strings, or one comma-separated string), `load`
 `{region = …, force = [Fx, Fy]}`, `move` `{region = …, velocity = [vx, vy]}`, `vectors`
-(one [vx, vy] or one per disc). A component of a point, box, polygon or vector may carry
+(one [vx, vy] or one per disc), `radii` (one number or one per point). A component of a point, box, polygon or vector may carry
 its unit too: `["20 cm", 0.0, "210 mm", 0.08]`.
 """
 

@@ -77,6 +77,21 @@ E = 1.0e6
 nu = 0.3
 rho = 1100.0
 """, ["[[structure]] 'second'", "overlaps structure 'gate' by", "allowed 2 %"]),
+    ("radii for fewer points", lambda t: t + """
+[[discs]]
+name = "mix"
+points = [[0.3, 0.01], [0.32, 0.01]]
+radius = [0.003]
+rho = 2700.0
+""", ["[[discs]] 'mix'", "key 'radius' has 1 radii for 2 points"]),
+    ("radii for a structure", lambda t: t + """
+[[structure]]
+name = "pair"
+points = [[0.3, 0.01], [0.307, 0.01]]
+radius = [0.003, 0.004]
+E = 1.0e6
+rho = 1100.0
+""", ["[[structure]] 'pair'", "key 'radius' takes one number for a structure"]),
     ("overlapping discs of one group", lambda t: t + """
 [[discs]]
 name = "pair"
@@ -231,6 +246,22 @@ radius = 0.005
 rho = 2700.0
 """)
     assert scenefile.load(str(path)).scene.solid.n == 2 * 16 + 3
+
+
+def test_points_may_carry_one_radius_each(tmp_path):
+    path = tmp_path / "flume.toml"
+    path.write_text(GOOD + """
+[[discs]]
+name = "mix"
+points = [[0.3, 0.003], [0.31, 0.004], [0.325, 0.005]]
+radius = ["3 mm", 0.004, 0.005]
+rho = 2700.0
+""")
+    sf = scenefile.load(str(path))
+    k = sf.bodies["mix"]
+    np.testing.assert_allclose(sf.scene.solid.radius[k], [0.003, 0.004, 0.005])
+    np.testing.assert_allclose(sf.scene.solid.mass[k],
+                               2700.0 * np.pi * np.array([3, 4, 5]) ** 2 * 1e-6)
 
 
 def test_components_of_points_boxes_and_regions_may_carry_units(tmp_path):
