@@ -216,6 +216,24 @@ def held_disc_rows(rows, scene) -> tuple:
     return tuple(sorted({int(r) for r in rows}))
 
 
+def motion_windows(windows, scene) -> tuple:
+    """The ``kinematic_motion`` option checked against the scene: each (a, b, vx, vy, t_on,
+    t_off) names held discs a … b − 1 and a window t_on < t_off (t_off may be inf)."""
+    n = scene.solid.n if scene.solid is not None else 0
+    fixed = np.asarray(scene.solid.fixed, bool) if n else np.zeros(0, bool)
+    out = []
+    for w in windows or ():
+        ok = (len(w) == 6 and all(isinstance(k, (int, np.integer)) for k in w[:2])
+              and 0 <= w[0] < w[1] <= n and bool(np.all(fixed[w[0]:w[1]]))
+              and all(isinstance(k, (int, float, np.integer, np.floating)) for k in w[2:])
+              and np.isfinite(w[2:5]).all() and float(w[4]) < float(w[5]))
+        if not ok:
+            raise ParameterError(f"kinematic_motion = {fmt(w)}; allowed (a, b, vx, vy, t_on, "
+                                 f"t_off): held discs 0 <= a < b <= {n}, t_on < t_off")
+        out.append((int(w[0]), int(w[1])) + tuple(float(k) for k in w[2:]))
+    return tuple(out)
+
+
 def moving_discs(solid) -> tuple:
     """The discs free at the start, when a quarter or more of them are fixed (else (): all
     rows; Physics.moving_discs). Below that the saving is a few rows against one more
@@ -261,6 +279,10 @@ class Physics:
       wall_reaction        the step records the discs' force on each DEM wall
                            (WallState.reaction; a force probe on an obstacle with DEM
                            walls sets it); off by default
+      kinematic_motion     ((a, b, vx, vy, t_on, t_off), …): kinematic discs a … b − 1
+                           move at (vx, vy) while t_on ≤ t < t_off and stand otherwise
+                           (stages.scheduled; a [[kinematic]] body's start and stop); ()
+                           for none: kinematic discs keep their velocity
       disc_reaction        indices of held (clamped or kinematic) discs: the step records
                            the force and moment the other discs' contacts and bonds put on
                            each (SolidState.reaction; a force probe on held discs sets it);
@@ -399,6 +421,7 @@ class Physics:
     wall_force: tuple = ()
     wall_reaction: bool = False
     disc_reaction: tuple = ()
+    kinematic_motion: tuple = ()
 
     OPTIONS = ("kernel", "xsph", "anticlump", "anticlump_boundary", "variable_h", "delta_sph",
                "artificial_viscosity", "wall_repulsion", "boundary_pressure", "h_margin",
@@ -408,7 +431,7 @@ class Physics:
                "density_diffusion",
                "wall_images", "shifting", "sort_fluid", "transport_continuity", "added_mass",
                "dem_list_substeps", "structure_acceleration", "wall_force",
-               "wall_reaction", "disc_reaction")
+               "wall_reaction", "disc_reaction", "kinematic_motion")
 
     CHOICES = {"kernel": KernelKind, "boundary_pressure": BoundaryPressure,
                "bond_section": BondSection, "fsi": FsiMethod, "voidage": Voidage,
@@ -439,6 +462,8 @@ class Physics:
             opts["wall_force"] = wall_force_rows(opts["wall_force"], scene)
         if "disc_reaction" in opts:
             opts["disc_reaction"] = held_disc_rows(opts["disc_reaction"], scene)
+        if "kinematic_motion" in opts:
+            opts["kinematic_motion"] = motion_windows(opts["kinematic_motion"], scene)
         # 0.4 h: with the fluid-only step (3.5× physics.md's) a 0.25 h skin was rebuilt every
         # ~5 steps of the 24k dam break and overflowed to K = 48; 0.4 h measured fastest
         # (0.25 / 0.3 / 0.35 / 0.4 / 0.45 / 0.6 h: 0.51 / 0.94 / 0.96 / 0.98 / 0.81 / 0.83 M

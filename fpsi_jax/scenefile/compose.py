@@ -360,6 +360,30 @@ def _deepest_overlap(A, ra, B, rb, same=False):
     return best
 
 
+def _motion_windows(path, groups, bodies, spec, solid):
+    """Physics.kinematic_motion for the [[kinematic]] bodies with a start or stop: (first
+    disc, end, vx, vy, start, stop); their discs stand at first when start > 0."""
+    out = []
+    for t, item, blk, _ in groups:
+        if t != "kinematic" or (item["start"] == 0.0 and item["stop"] is None):
+            continue
+        v = np.asarray(item["velocity"], float)
+        k = spec[t].index(item)
+        if v.ndim != 1:
+            fail(path, t, "key 'start'/'stop' moves the body as one: give one `velocity` "
+                 "vector", item, k)
+        stop = math.inf if item["stop"] is None else item["stop"]
+        if stop <= item["start"]:
+            fail(path, t, f"key 'stop' = {stop} s must come after 'start' = "
+                 f"{item['start']} s", item, k)
+        idx = bodies[item["name"]]
+        if item["start"] > 0:
+            solid.v[idx] = 0.0
+        out.append((int(idx[0]), int(idx[-1]) + 1, float(v[0]), float(v[1]),
+                    float(item["start"]), stop))
+    return tuple(out)
+
+
 def _overlaps(path, groups, fluid, spacing, spec):
     """Refuse discs of two bodies, or of one body given by points, that overlap by more
     than :data:`OVERLAP_ALLOWED` of the smaller radius, discs inside or deep across an
@@ -447,6 +471,7 @@ def compose(spec: dict, path: str) -> SceneFile:
             bonds = BondBlock(i=np.concatenate(ii).astype(np.int32),
                               j=np.concatenate(jj).astype(np.int32))
     _overlaps(path, groups, fluid, sp.dp if sp is not None else 0.0, spec)
+    windows = _motion_windows(path, groups, bodies, spec, solid)
 
     # fixed SPH particles and DEM walls
     has_discs = solid is not None
@@ -561,6 +586,8 @@ def compose(spec: dict, path: str) -> SceneFile:
     # physics options
     ph = {**_defaults("physics"), **spec.get("physics", {})}
     options = {"x64": ph["x64"]}
+    if windows:
+        options["kinematic_motion"] = windows
     has_grains = solid is not None and bool(np.any(solid.grain))
     coupled = solid is not None and bool(np.any(solid.structure))
     if fluid is not None:

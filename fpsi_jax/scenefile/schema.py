@@ -218,7 +218,12 @@ table("kinematic", True, "Discs moving at a prescribed constant velocity whateve
       "grains or debris on a gate), what the drive must overcome.",
       *[k for k in _DISC_COMMON if k.name not in ("clamp", "load", "move")],
       Key("mass_model", "str", "", "lattice", "disc mass model", choices=MASS),
-      Key("coupled", "bool", "", True, "takes part in the fluid sums (physics.coupling)"))
+      Key("coupled", "bool", "", True, "takes part in the fluid sums (physics.coupling)"),
+      Key("start", "float", "s", 0.0, "the body stands until this time, then moves at its "
+          "`velocity` (one vector) (a dam-break gate lifted after the water settles)",
+          lo=0.0),
+      _pos("stop", "s", None, "the body stands again from this time (after `start`; "
+           "default: never)"))
 
 table("contacts", False, "DEM contact law (W10–W17, K25). kn and ks default to the bonded "
       "structures' material; without a structure kn is required, unless every disc is "

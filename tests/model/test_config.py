@@ -49,6 +49,19 @@ def test_disc_reaction_takes_held_discs_only():
             Physics.for_scene(sc, disc_reaction=bad)
 
 
+def test_kinematic_motion_takes_windows_of_held_discs_only():
+    sc = coarse_plate()
+    fixed = np.flatnonzero(sc.solid.fixed)
+    a = int(fixed[0])
+    w = Physics.for_scene(sc, kinematic_motion=[(a, a + 1, 0.0, 1.0, 0.1, float("inf"))])
+    assert w.kinematic_motion == ((a, a + 1, 0.0, 1.0, 0.1, float("inf")),)
+    free = int(np.flatnonzero(~sc.solid.fixed)[0])
+    for bad in ([(free, free + 1, 0.0, 1.0, 0.0, 1.0)], [(a, a + 1, 0.0, 1.0, 0.2, 0.1)],
+                [(a, a + 1, 0.0, 1.0)]):
+        with pytest.raises(ParameterError, match=r"kinematic_motion = .*held discs"):
+            Physics.for_scene(sc, kinematic_motion=bad)
+
+
 def test_neighbour_skin_follows_the_step():
     """0.4 h at the larger step of a scene without a fluid-coupled structure, 0.25 h with
     one (option fsi), which keeps physics.md's step."""

@@ -59,3 +59,55 @@ def test_a_force_probe_on_an_obstacle_reads_that_obstacles_particles(tmp_path):
     inside = (x[:, 0] > 0.22) & (x[:, 0] < 0.25) & (x[:, 1] > 0.0) & (x[:, 1] < 0.04)
     assert np.array_equal(np.flatnonzero(inside), np.arange(a, b))
     assert sf.scene.options["wall_force"] == (a, b)
+
+
+GATE = """
+[scene]
+t_end = 0.06
+gravity = [0.0, 0.0]
+[tank]
+width = 0.2
+height = 0.2
+[[kinematic]]
+name = "gate"
+points = [[0.05, 0.05], [0.05, 0.06]]
+radius = 0.005
+rho = 7800.0
+velocity = [1.0, 0.0]
+start = 0.01
+stop = 0.03
+[[probe]]
+name = "g"
+kind = "displacement"
+body = "gate"
+"""
+
+
+def test_a_kinematic_body_stands_before_its_start_and_after_its_stop(tmp_path):
+    """A gate given start 0.01 s and stop 0.03 s at 1 m/s: it stands, moves 20 mm, stands;
+    the switches fall on the step boundaries (within one step of motion)."""
+    from fpsi_jax.run.driver import simulate
+    path = tmp_path / "gate.toml"
+    path.write_text(GATE)
+    sf = scenefile.load(str(path))
+    assert sf.scene.options["kinematic_motion"] == ((0, 2, 1.0, 0.0, 0.01, 0.03),)
+    assert np.all(sf.scene.solid.v == 0.0)                 # standing at the start
+    res = simulate(sf.scene, probes=sf.probes, progress=False)
+    t, u = np.asarray(res.times), np.asarray(res.probes["g"])[:, 0]
+    dt = float(res.params.dt)
+    assert np.all(u[t < 0.01 - dt] == 0.0)
+    assert u[-1] == pytest.approx(0.02, abs=1.01 * dt)
+    assert np.ptp(u[t > 0.03 + dt]) == 0.0
+    mid = (t > 0.012) & (t < 0.028)
+    assert np.polyfit(t[mid], u[mid], 1)[0] == pytest.approx(1.0, rel=1e-5)   # float32 u
+
+
+@pytest.mark.parametrize("edit, word", [
+    (("stop = 0.03", "stop = 0.005"), "key 'stop' = 0.005 s must come after 'start'"),
+    (("velocity = [1.0, 0.0]", "velocity = [[1.0, 0.0], [1.0, 0.0]]"), "one `velocity`"),
+])
+def test_a_bad_motion_window_is_refused(tmp_path, edit, word):
+    path = tmp_path / "gate.toml"
+    path.write_text(GATE.replace(*edit))
+    with pytest.raises(scenefile.FileError, match=word.replace("(", r"\(")):
+        scenefile.load(str(path))
