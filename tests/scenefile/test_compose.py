@@ -84,8 +84,8 @@ body = "gate"
 
 
 def test_a_kinematic_body_stands_before_its_start_and_after_its_stop(tmp_path):
-    """A gate given start 0.01 s and stop 0.03 s at 1 m/s: it stands, moves 20 mm, stands;
-    the switches fall on the step boundaries (within one step of motion)."""
+    """A gate with start = 0.01 s, stop = 0.03 s and velocity 1 m/s stands, moves 20 mm,
+    then stands; each switch falls on a step boundary (within one step of motion)."""
     from fpsi_jax.run.driver import simulate
     path = tmp_path / "gate.toml"
     path.write_text(GATE)
