@@ -295,21 +295,9 @@ def _material(path, items):
 
 
 def _touching(A, ra, B, rb, tol=1e-6) -> bool:
-    """Whether any point of A (radii ra) lies closer than (ra + rb)(1 − tol) to one of B:
-    B in chunks, A cut to each chunk's bounding box (no n_A × n_B matrix)."""
-    A, B = np.asarray(A, float), np.asarray(B, float)
-    ra = np.broadcast_to(np.asarray(ra, float), (len(A),))
-    rb = np.broadcast_to(np.asarray(rb, float), (len(B),))
-    reach = float(ra.max() + rb.max())
-    for k in range(0, len(B), 512):
-        b, r = B[k:k + 512], rb[k:k + 512]
-        near = np.all((A >= b.min(0) - reach) & (A <= b.max(0) + reach), axis=1)
-        if not near.any():
-            continue
-        d = np.linalg.norm(A[near][:, None, :] - b[None, :, :], axis=2)
-        if np.any(d < (ra[near][:, None] + r[None, :]) * (1 - tol)):
-            return True
-    return False
+    """Whether any disc of A (radii ra) overlaps one of B by more than ``tol`` of the
+    smaller radius (:func:`_deepest_overlap`)."""
+    return _deepest_overlap(A, ra, B, rb)[0] > tol
 
 
 def _discs_in_obstacle(ob, x, radius, depth=0.5) -> np.ndarray:
