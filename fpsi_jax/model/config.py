@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import motion
 from .errors import ParameterError, fmt, number
 from .options import (BondSection, BoundaryPressure, DensityDiffusion, Drag, FpiPressure,
                       FsiMethod, KernelKind, Side, Voidage, choose)
@@ -217,21 +218,13 @@ def held_disc_rows(rows, scene) -> tuple:
 
 
 def motion_windows(windows, scene) -> tuple:
-    """The ``kinematic_motion`` option checked against the scene: each (a, b, vx, vy, t_on,
-    t_off) names held discs a … b − 1 and a window t_on < t_off (t_off may be inf)."""
+    """The ``kinematic_motion`` option checked against the scene: each entry a
+    :class:`~fpsi_jax.model.motion.Window` (or its plain (a, b, vx, vy, t_on, t_off)),
+    :class:`~fpsi_jax.model.motion.Oscillation` or :class:`~fpsi_jax.model.motion.Track`
+    of held discs a … b − 1 (:func:`~fpsi_jax.model.motion.canonical`)."""
     n = scene.solid.n if scene.solid is not None else 0
     fixed = np.asarray(scene.solid.fixed, bool) if n else np.zeros(0, bool)
-    out = []
-    for w in windows or ():
-        ok = (len(w) == 6 and all(isinstance(k, (int, np.integer)) for k in w[:2])
-              and 0 <= w[0] < w[1] <= n and bool(np.all(fixed[w[0]:w[1]]))
-              and all(isinstance(k, (int, float, np.integer, np.floating)) for k in w[2:])
-              and np.isfinite(w[2:5]).all() and float(w[4]) < float(w[5]))
-        if not ok:
-            raise ParameterError(f"kinematic_motion = {fmt(w)}; allowed (a, b, vx, vy, t_on, "
-                                 f"t_off): held discs 0 <= a < b <= {n}, t_on < t_off")
-        out.append((int(w[0]), int(w[1])) + tuple(float(k) for k in w[2:]))
-    return tuple(out)
+    return tuple(motion.canonical(w, n, fixed) for w in windows or ())
 
 
 def moving_discs(solid) -> tuple:
@@ -279,10 +272,12 @@ class Physics:
       wall_reaction        the step records the discs' force on each DEM wall
                            (WallState.reaction; a force probe on an obstacle with DEM
                            walls sets it); off by default
-      kinematic_motion     ((a, b, vx, vy, t_on, t_off), …): kinematic discs a … b − 1
-                           move at (vx, vy) while t_on ≤ t < t_off and stand otherwise
-                           (stages.scheduled; a [[kinematic]] body's start and stop); ()
-                           for none: kinematic discs keep their velocity
+      kinematic_motion     prescribed motions of kinematic disc groups (model/motion.py):
+                           motion.Window (a, b, vx, vy, t_on, t_off) (a [[kinematic]]
+                           body's start and stop), motion.Oscillation (a wave maker's
+                           sinusoidal stroke), motion.Track (a displacement time
+                           series); stages.scheduled; () for none: kinematic discs keep
+                           their velocity
       disc_reaction        indices of held (clamped or kinematic) discs: the step records
                            the force and moment the other discs' contacts and bonds put on
                            each (SolidState.reaction; a force probe on held discs sets it);

@@ -18,6 +18,7 @@ from ..build import (boundary_block, boundary_layers, box_walls, dam_speed, disc
                      inside_polygon, k42_mapping, lattice, merge, move, packing,
                      polygon_lattice, sound_speed, domain, span_spacing, sph_params,
                      strip_ends, tank_walls, touching_pairs)
+from ..model import motion
 from ..model.params import BondParams, DemParams, FpiParams, Params
 from ..model.scene import BondBlock, FluidBlock, Scene, WallBlock
 from ..run import probes as P
@@ -348,15 +349,55 @@ def _deepest_overlap(A, ra, B, rb, same=False):
     return best
 
 
+def _read_track(path, item, k):
+    """The (t, x, y) rows of a [[kinematic]] body's `track` file, its path taken from the
+    scene file's folder."""
+    name = os.path.join(os.path.dirname(os.path.abspath(path)), item["track"])
+    if not os.path.isfile(name):
+        fail(path, "kinematic", f"key 'track': no such file {item['track']!r}", item, k)
+    try:
+        with open(name) as fh:
+            lines = [ln for ln in fh.read().splitlines() if ln.strip()]
+        rows = []
+        for j, ln in enumerate(lines):
+            cells = [c.strip() for c in ln.replace(";", ",").split(",")]
+            try:
+                rows.append([float(c) for c in cells])
+            except ValueError:
+                if j == 0:
+                    continue                 # a header line
+                raise ValueError(f"line {j + 1} is not three numbers: {ln!r}") from None
+        a = np.asarray(rows, float)
+        if a.ndim != 2 or a.shape[1] != 3 or len(a) < 2:
+            raise ValueError("needs two or more rows of three numbers: time [s], x [m], y [m]")
+        if not (np.all(np.isfinite(a)) and a[0, 0] >= 0 and np.all(np.diff(a[:, 0]) > 0)):
+            raise ValueError("allowed finite numbers, times >= 0 strictly increasing")
+    except (ValueError, UnicodeDecodeError) as e:
+        fail(path, "kinematic", f"key 'track' ({item['track']}): {e}", item, k)
+    return a
+
+
 def _motion_windows(path, groups, bodies, spec, solid):
-    """Physics.kinematic_motion for the [[kinematic]] bodies with a start or stop: (first
-    disc, end, vx, vy, start, stop); their discs stand at first when start > 0."""
+    """Physics.kinematic_motion for the [[kinematic]] bodies that do more than move at a
+    constant velocity from the start: a start or stop (motion.Window), `oscillate`
+    (motion.Oscillation) or `track` (motion.Track). Each body's discs start with the
+    motion's velocity at t = 0."""
     out = []
     for t, item, blk, _ in groups:
-        if t != "kinematic" or (item["start"] == 0.0 and item["stop"] is None):
+        osc, track = item.get("oscillate"), item.get("track")
+        if t != "kinematic" or (item["start"] == 0.0 and item["stop"] is None
+                                and osc is None and track is None):
             continue
         v = np.asarray(item["velocity"], float)
         k = spec[t].index(item)
+        if osc is not None and track is not None:
+            fail(path, t, "give `oscillate` or `track`, not both", item, k)
+        if (osc is not None or track is not None) and np.any(v != 0.0):
+            fail(path, t, f"key '{'oscillate' if osc is not None else 'track'}' prescribes "
+                 "the motion: leave `velocity` out", item, k)
+        if track is not None and (item["start"] != 0.0 or item["stop"] is not None):
+            fail(path, t, "key 'track': the file's times say when the body moves; leave "
+                 "`start` and `stop` out", item, k)
         if v.ndim != 1:
             fail(path, t, "key 'start'/'stop' moves the body as one: give one `velocity` "
                  "vector", item, k)
@@ -365,10 +406,18 @@ def _motion_windows(path, groups, bodies, spec, solid):
             fail(path, t, f"key 'stop' = {stop} s must come after 'start' = "
                  f"{item['start']} s", item, k)
         idx = bodies[item["name"]]
-        if item["start"] > 0:
-            solid.v[idx] = 0.0
-        out.append((int(idx[0]), int(idx[-1]) + 1, float(v[0]), float(v[1]),
-                    float(item["start"]), stop))
+        a, b = int(idx[0]), int(idx[-1]) + 1
+        if track is not None:
+            rows = _read_track(path, item, k)
+            m = motion.Track(a, b, tuple(rows[:, 0]), tuple(rows[:, 1]), tuple(rows[:, 2]))
+        elif osc is not None:
+            m = motion.Oscillation(a, b, float(osc["amplitude"][0]), float(osc["amplitude"][1]),
+                                   float(osc["period"]), float(osc.get("phase", 0.0)),
+                                   float(osc.get("ramp", 0.0)), float(item["start"]), stop)
+        else:
+            m = motion.Window(a, b, float(v[0]), float(v[1]), float(item["start"]), stop)
+        solid.v[idx] = np.asarray(motion.velocity(m, 0.0))
+        out.append(m)
     return tuple(out)
 
 

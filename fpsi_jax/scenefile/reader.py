@@ -114,19 +114,22 @@ def _with_units(key, v):
     return quantity(key, v) if isinstance(v, str) and key.unit else v
 
 
-def _table(name, v, keys, convert_one):
-    """A small inline table {a = …, b = …} with exactly ``keys``, each converted by
-    ``convert_one(key, value)``; ValueError naming the missing, unknown or bad entry."""
-    form = "{" + ", ".join(f"{k} = [...]" for k in keys) + "}"
+def _table(name, v, keys, convert_one, optional=()):
+    """A small inline table {a = …, b = …} with exactly ``keys`` and any of ``optional``,
+    each converted by ``convert_one(key, value)``; ValueError naming the missing, unknown
+    or bad entry."""
+    form = "{" + ", ".join([f"{k} = [...]" for k in keys]
+                           + [f"[{k} = ...]" for k in optional]) + "}"
     if not isinstance(v, dict):
         raise ValueError(f"must be a table {form}")
-    missing, unknown = [k for k in keys if k not in v], sorted(set(v) - set(keys))
+    missing = [k for k in keys if k not in v]
+    unknown = sorted(set(v) - set(keys) - set(optional))
     if missing or unknown:
         what = (f"needs {', '.join(repr(k) for k in missing)}" if missing
                 else f"has unknown key(s) {', '.join(repr(k) for k in unknown)}")
         raise ValueError(f"{what}: allowed a table {form}")
     out = {}
-    for k in keys:
+    for k in [*keys, *(k for k in optional if k in v)]:
         try:
             out[k] = convert_one(k, v[k])
         except ValueError as e:
@@ -222,6 +225,14 @@ def convert(key, v):
                  "velocity": Key("velocity", "point", "m/s", None, "")}
         keys = ("region", "force") if t == "load" else ("region", "velocity")
         return _table(key.name, v, keys, lambda k, x: convert(kinds[k], x))
+    if t == "oscillate":
+        from .schema import Key
+        kinds = {"amplitude": Key("amplitude", "point", "m", None, ""),
+                 "period": Key("period", "float", "s", None, "", lo=0.0, lo_open=True),
+                 "phase": Key("phase", "float", "", None, ""),
+                 "ramp": Key("ramp", "float", "s", None, "", lo=0.0)}
+        return _table(key.name, v, ("amplitude", "period"), lambda k, x: convert(kinds[k], x),
+                      optional=("phase", "ramp"))
     raise AssertionError(t)
 
 

@@ -211,8 +211,10 @@ table("discs", True, "Discs that are neither a bonded structure nor grains in th
       Key("mass_model", "str", "", "disc", "disc mass model", choices=MASS),
       Key("grain", "bool", "", False, "couple to the fluid as grains (physics.fpi)"))
 
-table("kinematic", True, "Discs moving at a prescribed constant velocity whatever the forces "
-      "(a gate lifted at a given speed); they push the fluid and the grains. Give `box`, "
+table("kinematic", True, "Discs moving as prescribed whatever the forces: at a constant "
+      "velocity (a gate lifted at a given speed), in a sinusoidal stroke (`oscillate`: a "
+      "wave maker) or along a displacement time series (`track`); they push the fluid and "
+      "the grains. Give `box`, "
       "`polygon` or `points`. A force probe on them reads all that pushes them: the "
       "fluid's force and the free discs' contacts (a platen's load, the blows of "
       "grains or debris on a gate), what the drive must overcome.",
@@ -223,7 +225,18 @@ table("kinematic", True, "Discs moving at a prescribed constant velocity whateve
           "`velocity` (one vector) (a dam-break gate lifted after the water settles)",
           lo=0.0),
       _pos("stop", "s", None, "the body stands again from this time (after `start`; "
-           "default: never)"))
+           "default: never)"),
+      Key("oscillate", "oscillate", "m", None, "a sinusoidal stroke instead of a constant "
+          "velocity (a piston or flap wave maker): {amplitude = [ax, ay], period = T} and "
+          "optionally phase = φ [rad] (default 0) and ramp = T_r [s] (default 0); the "
+          "displacement from where the body is built is r(τ) A (sin(2πτ/T + φ) − sin φ), "
+          "τ the time since `start`, r a half-cosine ramp from 0 to 1 over the first T_r; "
+          "until `stop`"),
+      Key("track", "str", "", None, "a CSV file (path from the scene file's folder) of "
+          "the body's displacement: rows of time [s], x [m], y [m] (a header line is "
+          "skipped), followed piecewise linearly from where the body is built; it stands "
+          "before the first time and after the last (a piston stroke from a wave-maker "
+          "transfer function, a measured gate opening)"))
 
 table("contacts", False, "DEM contact law (W10–W17, K25). kn and ks default to the bonded "
       "structures' material; without a structure kn is required, unless every disc is "

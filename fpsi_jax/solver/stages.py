@@ -43,6 +43,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..model import motion
 from ..model.config import Physics
 from ..model.options import BoundaryPressure, FpiPressure, FsiMethod
 from ..model.params import Params
@@ -339,24 +340,27 @@ def _list_reach(phys: Physics, params: Params, state: State):
     return moved, 2.0 * jnp.max(travel)
 
 
-def scheduled(phys: Physics, solid, t):
-    """``solid`` with the velocity of each kinematic group that has a start or stop
-    (Physics.kinematic_motion) at time ``t``: (vx, vy) while t_on ≤ t < t_off, else 0."""
+def scheduled(phys: Physics, solid, t0, dt):
+    """``solid`` with the velocity of each kinematic group that has a prescribed motion
+    (Physics.kinematic_motion, model/motion.py): its mean over the sub-step [t0, t0 +
+    dt] it moves the group over, which keeps the group on its prescribed path to
+    round-off."""
+    if not phys.kinematic_motion:
+        return solid
     v = solid.v
-    for a, b, vx, vy, t_on, t_off in phys.kinematic_motion:
-        on = (t >= t_on) & (t < t_off)
-        vel = jnp.where(on, jnp.asarray([vx, vy], v.dtype), jnp.zeros(2, v.dtype))
-        v = v.at[a:b].set(jnp.broadcast_to(vel, (b - a, 2)))
-    return solid.replace(v=v) if phys.kinematic_motion else solid
+    for m in phys.kinematic_motion:
+        vel = motion.mean_velocity(m, t0, dt, v.dtype)
+        v = v.at[m.a:m.b].set(jnp.broadcast_to(vel, (m.b - m.a, 2)))
+    return solid.replace(v=v)
 
 
 def _disc_substep(phys: Physics, params: Params, state: State, t, dt, f_fluid, wet,
                   check_list: bool = True, m_added=None) -> State:
     """One DEM kick–drift–kick of length ``dt`` ending at time ``t``; ``check_list``: the
     DEM list's skin test at the new positions (:func:`_dem_list_update`). Kinematic
-    groups with a start or stop move at their velocity of the sub-step's start
+    groups with a prescribed motion move at its mean velocity over the sub-step
     (:func:`scheduled`)."""
-    s = scheduled(phys, state.solid, t - dt)
+    s = scheduled(phys, state.solid, t - dt, dt)
     with jax.named_scope("step.solid_kick_drift"):
         v_half = s.v + 0.5 * dt * s.acc
         w_half = s.omega + 0.5 * dt * s.alpha

@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from fpsi_jax.model import motion
 from fpsi_jax.model.config import Physics
 from fpsi_jax.model.errors import ParameterError
 
@@ -49,16 +50,27 @@ def test_disc_reaction_takes_held_discs_only():
             Physics.for_scene(sc, disc_reaction=bad)
 
 
-def test_kinematic_motion_takes_windows_of_held_discs_only():
+def test_kinematic_motion_takes_motions_of_held_discs_only():
+    """Plain 6-tuples become motion.Window; an Oscillation and a Track pass as given
+    (their JSON lists read back by length); free discs, empty windows, a non-positive
+    period and a track whose times do not increase are refused with what is wrong."""
     sc = coarse_plate()
     fixed = np.flatnonzero(sc.solid.fixed)
     a = int(fixed[0])
     w = Physics.for_scene(sc, kinematic_motion=[(a, a + 1, 0.0, 1.0, 0.1, float("inf"))])
-    assert w.kinematic_motion == ((a, a + 1, 0.0, 1.0, 0.1, float("inf")),)
+    assert w.kinematic_motion == (motion.Window(a, a + 1, 0.0, 1.0, 0.1, float("inf")),)
+    assert isinstance(w.kinematic_motion[0], motion.Window)
+    osc = motion.Oscillation(a, a + 1, 0.01, 0.0, 0.5, 0.0, 0.2, 0.0, float("inf"))
+    trk = motion.Track(a, a + 1, (0.0, 1.0), (0.0, 0.1), (0.0, 0.0))
+    got = Physics.for_scene(sc, kinematic_motion=[osc, list(trk)]).kinematic_motion
+    assert got == (osc, trk) and isinstance(got[1], motion.Track)
     free = int(np.flatnonzero(~sc.solid.fixed)[0])
-    for bad in ([(free, free + 1, 0.0, 1.0, 0.0, 1.0)], [(a, a + 1, 0.0, 1.0, 0.2, 0.1)],
-                [(a, a + 1, 0.0, 1.0)]):
-        with pytest.raises(ParameterError, match=r"kinematic_motion = .*held discs"):
+    for bad, word in (([(free, free + 1, 0.0, 1.0, 0.0, 1.0)], "held discs"),
+                      ([(a, a + 1, 0.0, 1.0, 0.2, 0.1)], "t_on < t_off"),
+                      ([(a, a + 1, 0.0, 1.0)], "allowed"),
+                      ([osc._replace(period=0.0)], "period > 0"),
+                      ([trk._replace(t=(1.0, 0.5))], "strictly increasing")):
+        with pytest.raises(ParameterError, match=r"kinematic_motion entry .*" + word):
             Physics.for_scene(sc, kinematic_motion=bad)
 
 

@@ -1,9 +1,12 @@
 """What a scene file leaves to be derived: the grains' pressure coupling by whether they
 form a bed (Physics.for_scene), and an obstacle's boundary rows for a force probe."""
+import re
+
 import numpy as np
 import pytest
 
 from fpsi_jax import scenefile
+from fpsi_jax.model import motion
 from fpsi_jax.model.config import Physics
 
 WATER = """
@@ -100,6 +103,70 @@ def test_a_kinematic_body_stands_before_its_start_and_after_its_stop(tmp_path):
     assert np.ptp(u[t > 0.03 + dt]) == 0.0
     mid = (t > 0.012) & (t < 0.028)
     assert np.polyfit(t[mid], u[mid], 1)[0] == pytest.approx(1.0, rel=1e-5)   # float32 u
+
+
+def test_an_oscillating_body_follows_its_stroke(tmp_path):
+    """A wave maker's stroke, `oscillate` = {amplitude = [1 cm, 0.5 cm], period = 20 ms,
+    ramp = 10 ms} from start = 5 ms, 41 steps a period: the body's displacement is
+    r(τ) A sin(2πτ/T) at every recorded step to float32 round-off (each sub-step moves it
+    at its mean velocity; V at the sub-step's middle overshot the stroke by 0.1 %), and
+    it stands before its start."""
+    from fpsi_jax.run.driver import simulate
+    path = tmp_path / "osc.toml"
+    path.write_text(GATE.replace("velocity = [1.0, 0.0]", 'oscillate = {amplitude = '
+                                 '["1 cm", "5 mm"], period = "20 ms", ramp = 0.01}')
+                    .replace("start = 0.01", "start = 0.005").replace("stop = 0.03\n", ""))
+    sf = scenefile.load(str(path))
+    m = sf.scene.options["kinematic_motion"][0]
+    assert m == motion.Oscillation(0, 2, 0.01, 0.005, 0.02, 0.0, 0.01, 0.005, float("inf"))
+    res = simulate(sf.scene, probes=sf.probes, progress=False, every=0.002)
+    t, u = np.asarray(res.times), np.asarray(res.probes["g"])[:, :2]
+    want = np.array([motion.displacement(m, ti) for ti in t])
+    assert np.all(u[t <= 0.005] == 0.0)
+    assert np.max(np.abs(u - want)) < 1e-7          # 1e-5 of the stroke
+
+
+def test_a_tracked_body_follows_its_file(tmp_path):
+    """`track` = a CSV of (t, x, y) with a header: the body follows the rows piecewise
+    linearly and stands after the last one."""
+    from fpsi_jax.run.driver import simulate
+    (tmp_path / "stroke.csv").write_text("time_s,x_m,y_m\n0.0,0,0\n0.02,0.01,0\n"
+                                         "0.03,0.01,-0.005\n")
+    path = tmp_path / "trk.toml"
+    path.write_text(GATE.replace("velocity = [1.0, 0.0]", 'track = "stroke.csv"')
+                    .replace("start = 0.01\n", "").replace("stop = 0.03\n", ""))
+    sf = scenefile.load(str(path))
+    res = simulate(sf.scene, probes=sf.probes, progress=False, every=0.002)
+    t, u = np.asarray(res.times), np.asarray(res.probes["g"])[:, :2]
+    m = sf.scene.options["kinematic_motion"][0]
+    want = np.array([motion.displacement(m, ti) for ti in t])
+    assert np.max(np.abs(u - want)) < 1e-7
+    assert u[-1] == pytest.approx([0.01, -0.005], abs=1e-7)
+
+
+@pytest.mark.parametrize("edit, csv, word", [
+    (('velocity = [1.0, 0.0]', 'velocity = [1.0, 0.0]\noscillate = {amplitude = [0.01, 0], '
+      'period = 0.1}'), None, "key 'oscillate' prescribes the motion: leave `velocity` out"),
+    (('velocity = [1.0, 0.0]', 'oscillate = {amplitude = [0.01, 0]}'), None,
+     "'period'"),
+    (('velocity = [1.0, 0.0]', 'oscillate = {amplitude = [0.01, 0], period = 0.1, '
+      'phaze = 1}'), None, "unknown key(s) 'phaze'"),
+    (('velocity = [1.0, 0.0]', 'track = "s.csv"'), "0,0,0\n0.1,0.01,0\n",
+     "key 'track': the file's times say when the body moves"),
+    (('velocity = [1.0, 0.0]\nstart = 0.01\nstop = 0.03', 'track = "none.csv"'), None,
+     "no such file 'none.csv'"),
+    (('velocity = [1.0, 0.0]\nstart = 0.01\nstop = 0.03', 'track = "s.csv"'),
+     "t,x,y\n0,0,0\n0,0.01,0\n", "strictly increasing"),
+    (('velocity = [1.0, 0.0]\nstart = 0.01\nstop = 0.03', 'track = "s.csv"'),
+     "0,0,0\n0.1,abc,0\n", "line 2 is not three numbers"),
+])
+def test_a_bad_prescribed_motion_is_refused(tmp_path, edit, csv, word):
+    if csv is not None:
+        (tmp_path / "s.csv").write_text(csv)
+    path = tmp_path / "gate.toml"
+    path.write_text(GATE.replace(*edit))
+    with pytest.raises(scenefile.FileError, match=re.escape(word)):
+        scenefile.load(str(path))
 
 
 @pytest.mark.parametrize("edit, word", [
