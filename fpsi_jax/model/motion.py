@@ -1,7 +1,7 @@
 """Prescribed motions of kinematic disc groups (Physics.kinematic_motion).
 
 A kinematic disc moves at a velocity the scene prescribes, whatever the forces on it: a
-gate lifted at a constant speed, a piston or flap wave maker, a platen. Each motion names
+gate lifted at a constant speed, a piston wave maker, a platen. Each motion names
 a contiguous group of held discs a … b − 1 and prescribes the displacement X(t) of the
 whole group from where it was built. Each DEM sub-step [t, t + Δt] moves the group at
 its mean velocity over the sub-step, (X(t + Δt) − X(t))/Δt (:func:`mean_velocity`;

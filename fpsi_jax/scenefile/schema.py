@@ -227,7 +227,7 @@ table("kinematic", True, "Discs moving as prescribed whatever the forces: at a c
       _pos("stop", "s", None, "the body stands again from this time (after `start`; "
            "default: never)"),
       Key("oscillate", "oscillate", "m", None, "a sinusoidal stroke instead of a constant "
-          "velocity (a piston or flap wave maker): {amplitude = [ax, ay], period = T} and "
+          "velocity (a piston wave maker; the body translates, it does not turn): {amplitude = [ax, ay], period = T} and "
           "optionally phase = φ [rad] (default 0) and ramp = T_r [s] (default 0); the "
           "displacement from where the body is built is r(τ) A (sin(2πτ/T + φ) − sin φ), "
           "τ the time since `start`, r a half-cosine ramp from 0 to 1 over the first T_r; "
