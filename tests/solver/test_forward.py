@@ -382,44 +382,29 @@ def test_grain_forces_and_their_reaction_sum_to_zero():
 
 
 @x64
-def test_grain_velocity_gradient_wrt_viscosity_matches_finite_differences():
-    """d v_p(t) / d μ through 60 coupled steps (SPH, DEM, drag, voidage) vs a central
-    difference."""
-    scene = grain_scene(rho_grain=2500.0)
-    phys, p, st = init_x64(scene)
-
-    @jax.jit
-    def vy(mu):
-        q = p.replace(sph=p.sph.replace(mu=mu))
-        end, _ = forward.rollout(phys, st, q, 60)
-        return end.solid.v[0, 1]
-
-    mu = jnp.asarray(0.01)
-    g = float(jax.grad(vy)(mu))
-    h = 1e-5
-    fd = (float(vy(mu + h)) - float(vy(mu - h))) / (2 * h)
-    assert g != 0.0
-    assert g == pytest.approx(fd, rel=1e-4)
-
-
-@x64
-def test_grain_velocity_gradient_wrt_added_mass_matches_finite_differences():
-    """d v_p(t) / d C_a through 60 coupled steps with the added mass (the grain's inertia,
-    the held m_a Du/Dt and the reaction) vs a central difference."""
+def test_grain_velocity_gradient_wrt_viscosity_and_added_mass_matches_finite_differences():
+    """d v_p(t) / d μ and d v_p(t) / d C_a through 60 coupled steps (SPH, DEM, drag,
+    voidage, and the added mass: the grain's inertia, the held m_a Du/Dt and the
+    reaction) vs central differences; one program for both (its compilation is most of
+    the test's time)."""
     scene = grain_scene(rho_grain=2500.0, added_mass=True)
     phys, p, st = init_x64(scene)
 
     @jax.jit
-    def vy(c_a):
-        end, _ = forward.rollout(phys, st, p.replace(fpi=p.fpi.replace(added_mass=c_a)), 60)
+    def vy(mu, c_a):
+        q = p.replace(sph=p.sph.replace(mu=mu), fpi=p.fpi.replace(added_mass=c_a))
+        end, _ = forward.rollout(phys, st, q, 60)
         return end.solid.v[0, 1]
 
-    c_a = jnp.asarray(1.0)
-    g = float(jax.grad(vy)(c_a))
+    mu, c_a = jnp.asarray(0.01), jnp.asarray(1.0)
+    g_mu, g_ca = (float(g) for g in jax.grad(vy, argnums=(0, 1))(mu, c_a))
     h = 1e-5
-    fd = (float(vy(c_a + h)) - float(vy(c_a - h))) / (2 * h)
-    assert g > 0.0                      # more inertia: the grain falls slower
-    assert g == pytest.approx(fd, rel=1e-5)
+    fd_mu = (float(vy(mu + h, c_a)) - float(vy(mu - h, c_a))) / (2 * h)
+    fd_ca = (float(vy(mu, c_a + h)) - float(vy(mu, c_a - h))) / (2 * h)
+    assert g_mu != 0.0
+    assert g_mu == pytest.approx(fd_mu, rel=1e-4)
+    assert g_ca > 0.0                   # more inertia: the grain falls slower
+    assert g_ca == pytest.approx(fd_ca, rel=1e-5)
 
 
 def test_a_packed_bed_with_added_mass_stays_stable():
