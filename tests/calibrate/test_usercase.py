@@ -78,6 +78,18 @@ def test_start_values_of_the_file_follow_the_fitted_names(sf):
     assert start == {"beam.E": 2.0e7}
 
 
+def test_a_runs_own_probe_file_is_taken_with_its_last_step_past_t_end(sf, tmp_path):
+    """`fpsi run` records up to its last step, ⌈t_end/Δt⌉ Δt, a sample past t_end: the
+    file is taken as data, that sample left out of the default window (was refused)."""
+    t_end = float(sf.scene.t_end)
+    t = np.append(np.arange(1, 41) * t_end / 40, t_end + 0.4 * t_end / 40)
+    rows = "".join(f"{a:.9g}, {1e3 * a:.6g}, 0\n" for a in t)
+    data = _csv(tmp_path, "t [s], tip.ux [mm], tip.uy [mm]\n" + rows)
+    s = _settings(sf, fit=["E"], data=data)
+    got_t, _, _, window, _ = uc.check_data(sf, s, uc._probe(sf, s.probe))
+    assert len(got_t) == 41 and window[1] == pytest.approx(t_end)
+
+
 # --- refused input ----------------------------------------------------------------------------
 def _csv(tmp_path, text):
     p = tmp_path / "measured.csv"
@@ -118,8 +130,8 @@ BAD = [
     ("no column of the probe", ["--fit", "E"], "t [s], gate.ux [mm]\n0.05, 1\n0.1, 2\n",
      ["measured.csv", "no column measures probe 'tip'", "tip.ux [m], tip.uy [m]"]),
     ("samples after the run's end", ["--fit", "E"],
-     "t [s], tip.ux [mm]\n0.05, 1\n0.1, 2\n0.6, 3\n",
-     ["measured.csv", "1 of its 3 samples lie after the run's end", "--window"]),
+     "t [s], tip.ux [mm]\n0.05, 1\n0.1, 2\n0.6, 3\n0.7, 4\n",
+     ["measured.csv", "2 of its 4 samples lie after the run's end", "--window"]),
     ("a force in N", ["--fit", "E"], "t [s], tip.ux [N]\n0.05, 1\n0.1, 2\n",
      ["measured.csv", "unknown unit 'N'", "per metre of out-of-plane thickness"]),
     ("data not a text file (an HDF5 output)", ["--fit", "E"], b"\x89HDF\r\n\x1a\n\x00\xff",
