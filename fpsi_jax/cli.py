@@ -117,15 +117,11 @@ def cmd_run(args):
         raise ParameterError("--unsafe-dt needs --dt")
     if args.dt is not None:
         number("--dt", args.dt, 0.0, None, lo_open=True)
+    if every is not None and args.every is None and args.t_end is not None and every > t_end:
+        every = t_end           # a run shortened by --t-end writes its one frame at the end
     if every is not None:       # named as the user gave it: an option or the scene file's key
-        try:
-            number("--every" if args.every is not None
-                   else f"{args.scene}: [output]: key 'every'", every, 0.0, t_end, lo_open=True)
-        except ParameterError as e:
-            if args.every is None and args.t_end is not None:
-                raise ParameterError(f"{e} (the end time --t-end; give --every with it)") \
-                    from None
-            raise
+        number("--every" if args.every is not None
+               else f"{args.scene}: [output]: key 'every'", every, 0.0, t_end, lo_open=True)
     _, params = setup(scene, args.dt, unsafe_dt=unsafe, **phys)  # every check before compiling
     check_steps(t_end, float(params.dt))
     info = {"scene": args.scene, "set": args.set or [], "t_end": t_end, "every": every,
