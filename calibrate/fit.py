@@ -139,17 +139,27 @@ def gauss_newton_stderr(cal: Calibration, z, noise: float | None = None, jac=Non
         s2, how = float(r @ r) / (m - p), f"RSS/(m - p), m = {m}, p = {p}"
     else:
         return {"note": f"m = {m} residuals for p = {p} parameters: give noise= for errors"}
+    # a quantity the residuals do not move with (a strength no bond reaches, a damping
+    # that acts on nothing) is not identifiable: its error is infinite, not the 0 that the
+    # pseudo-inverse of a zero column would give
+    col = np.linalg.norm(J, axis=0)
+    blind = col <= 1e-12 * max(float(col.max()), 1e-300)
     cov = s2 * np.linalg.pinv(J.T @ J)
     dv = np.asarray(jax.jacfwd(cal.space.values)(z), float).diagonal()
     v = np.asarray(cal.space.values(z), float)
-    sd_z = np.sqrt(np.clip(np.diag(cov), 0, None))
+    sd_z = np.where(blind, np.inf, np.sqrt(np.clip(np.diag(cov), 0, None)))
     out = {name: {"value": float(v[k]), "std_error": float(abs(dv[k]) * sd_z[k]),
                   "rel_std_error": float(abs(dv[k]) * sd_z[k] / abs(v[k]))}
            for k, name in enumerate(cal.space.names)}
-    d = np.where(sd_z > 0, sd_z, 1.0)
+    d = np.where((sd_z > 0) & np.isfinite(sd_z), sd_z, 1.0)
     out["correlation"] = (cov / np.outer(d, d)).tolist()
     out["s"] = math.sqrt(s2)
     out["s_from"] = how
+    if blind.any():
+        names = ", ".join(n for n, b in zip(cal.space.names, blind) if b)
+        out["note"] = (f"{names}: the residuals do not change with it at the fitted point, "
+                       "so the data do not determine it (infinite standard error; e.g. a "
+                       "bond strength no bond reaches in the window)")
     return out
 
 

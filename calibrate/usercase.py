@@ -620,7 +620,7 @@ def report(case: UserCase, res, progress=print) -> tuple[dict, dict]:
         "fitted": {k: res.best[k] for k in res.names},
         "std_error": {k: stderr[k]["std_error"] for k in res.names if k in stderr},
         "rel_std_error": {k: stderr[k]["rel_std_error"] for k in res.names if k in stderr},
-        "std_error_note": stderr.get("note") or stderr.get("s_from"),
+        "std_error_note": _stderr_note(stderr, res.stopped),
         "loss_start": res.loss_start, "loss_fitted": res.loss_best,
         "loss_history": [h["loss"] for h in res.history],
         "steps": res.steps, "stopped": res.stopped,
@@ -680,6 +680,20 @@ def plot(case: UserCase, rec: dict, curves: dict, path: str, title: str = ""):
     plt.close(fig)
 
 
+def _stderr_note(stderr: dict, stopped: str) -> str | None:
+    """What the standard errors are: their residual scale, why there are none, which
+    quantity the data do not determine, and whether the fit converged (a fit that stopped
+    without improving sits where it stalled, maybe in a local minimum of a chaotic loss:
+    its Gauss–Newton errors describe the loss's curvature there, not the distance to the
+    truth)."""
+    parts = [p for p in (stderr.get("note"), stderr.get("s_from")) if p]
+    if stopped.startswith("no improvement"):
+        parts.append(f"the fit stopped ({stopped}): the errors are the curvature where it "
+                     "stalled, not a confidence interval; try other starts or a shorter "
+                     "window (docs/scene-file.md, [calibration])")
+    return "; ".join(parts) or None
+
+
 def summary(rec: dict) -> str:
     """One line per fitted quantity and per window: start → fitted ± error; RMS; for a
     free-vibration target, the data's and the model's frequency and damping ratio."""
@@ -701,4 +715,7 @@ def summary(rec: dict) -> str:
         lines.append(f"free vibration: data {report['fitted']['frequency_ref']:.5g} Hz, "
                      f"ζ {report['fitted']['damping_ratio_ref']:.4g}; start "
                      f"{freq(report['start'])}; fitted {freq(report['fitted'])}")
+    note = rec.get("std_error_note") or ""
+    if "do not change" in note or "stopped" in note or not rec["std_error"]:
+        lines.append(f"standard errors: {note or 'none'}")
     return "\n".join(lines)

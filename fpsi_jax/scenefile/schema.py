@@ -515,6 +515,19 @@ file's values. A recording of your own model made with `fpsi run` (a synthetic t
 differs from the fit's model by the step's error: on noise-free data the fitted values come
 within that error of the truth, but the standard errors, which measure the misfit left,
 need not cover it. Make such a recording with `fpsi run FILE --dt <run.dt_s>`.
+
+What a fit can and cannot find. A bond strength (`sigma_c`, `tau_c`) is a threshold: the
+record does not change with it until a bond reaches it, then jumps. Fit it against a
+window in which bonds break, with the secant Jacobian (`--jacobian fd`), from a start
+between the stress the bonds reach and the truth; where no bond reaches the strength the
+residuals do not move with it, and the fit says so (an infinite standard error and a
+note) instead of a value. A record of an impact with splash is chaotic: its loss has
+several minima in a stiffness (a trial's post under a bore: loss 0.022 / 0.043 / 0.020
+at E = 2.5 / 3.0 / 3.5 MPa for a truth of 2), so fit a short window around the first
+impact, from several starts (`--start`), and keep the lowest loss; a fit that stops
+without improving prints that its standard errors are the curvature where it stalled.
+'ad' and 'fd' are different compiled programs, so the float32 round-off of a chaotic run,
+and with it the loss at the same start, differs between them (by 0.7 % in that trial).
 """
 
 

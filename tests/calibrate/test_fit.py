@@ -84,6 +84,16 @@ def test_gradient_matches_central_differences(tip_problem):
         return J.at[0, 0].set(jnp.nan), out
     se = gauss_newton_stderr(cal, z, jac=nan_jacobian)
     assert set(se) == {"note"} and "Jacobian is not finite" in se["note"]
+    # a quantity the residuals do not move with (a strength no bond reaches) has an
+    # infinite error and a note naming it (the pseudo-inverse gave 0: a fit of a bond
+    # strength far from the truth reported ± 0 Pa), the other keeps its finite error
+    def blind_jacobian(zz):
+        J, out = cal.jacobian(zz)
+        return J.at[:, 1].set(0.0), out
+    se = gauss_newton_stderr(cal, z, jac=blind_jacobian)
+    assert se["dem.damping"]["std_error"] == float("inf")
+    assert 0 < se["stiffness"]["std_error"] < float("inf")
+    assert "dem.damping: the residuals do not change with it" in se["note"]
 
 
 @pytest.mark.slow

@@ -201,3 +201,13 @@ def test_summary_of_a_free_vibration_fit_gives_the_frequencies_and_damping_ratio
     assert "beam.E: 2e+07 -> 1e+07 Pa" in text
     assert "free vibration: data 11.5 Hz, ζ 0.03; start f 16.4 Hz, ζ 0.06; fitted f 11.5 Hz, " \
            "ζ 0.031" in text
+
+
+def test_the_standard_errors_of_a_stalled_fit_say_so():
+    """A fit that stopped without improving (a local minimum of a chaotic impact's loss:
+    a trial's fit of E stalled at 3.9 MPa for a truth of 2 and printed ± 8.9 kPa) says
+    its errors are the curvature where it stalled; a converged fit's note is the scale."""
+    stalled = uc._stderr_note({"s_from": "RSS/(m - p)"}, "no improvement in 3 steps")
+    assert stalled.startswith("RSS/(m - p); the fit stopped (no improvement in 3 steps)")
+    assert "not a confidence interval" in stalled
+    assert uc._stderr_note({"s_from": "RSS/(m - p)"}, "loss_tol") == "RSS/(m - p)"
