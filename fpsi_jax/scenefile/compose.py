@@ -76,6 +76,16 @@ def _top_bottom(item):
     return max(ys), min(ys)
 
 
+def _spacing_key(e, key) -> str:
+    """A builder's "spacing … m is larger than the block" named as the key that set the
+    spacing (``d`` of a body, ``dx`` of the fluid), which is what the user got wrong."""
+    msg = str(e)
+    if msg.startswith("spacing "):
+        value, rest = msg[len("spacing "):].split(" m ", 1)
+        return f"key {key!r} = {value} m {rest}"
+    return msg
+
+
 def _fill(item, dx):
     if item.get("box") is not None:
         x0, y0, x1, y1 = item["box"]
@@ -140,8 +150,11 @@ def _fluid(path, spec, g):
         try:
             x = _fill(r, dx)
         except Exception as e:
-            fail(path, "fluid.region", f"key {'box' if r.get('box') else 'polygon'!r}: {e}",
-                 r, i)
+            shape = 'box' if r.get('box') else 'polygon'
+            if str(e).startswith("spacing "):
+                fail(path, "fluid", f"{_spacing_key(e, 'dx')} ([[fluid.region]] "
+                     f"#{i + 1}'s {shape})")
+            fail(path, "fluid.region", f"key {shape!r}: {e}", r, i)
         surface = _top_bottom(r)[0] if r["surface"] is None else r["surface"]
         b = hydrostatic_fluid(x, sp.rho0, c0, sp.gamma, surface, g=g, dx=dx, h=h)
         b.v = np.broadcast_to(np.asarray(r["velocity"], float), b.x.shape).copy()
@@ -186,6 +199,8 @@ def _positions(path, tname, item, i):
             if x.shape[0] == 0:
                 raise ValueError(f"the polygon holds no disc of diameter {d}")
     except Exception as e:
+        if str(e).startswith("spacing "):
+            fail(path, tname, f"{_spacing_key(e, 'd')} (its {how})", item, i)
         fail(path, tname, f"key {how!r}: {e}", item, i)
     if tname == "grains" and item["n"] is not None:
         if item["n"] > x.shape[0]:
