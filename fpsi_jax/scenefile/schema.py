@@ -187,7 +187,10 @@ table("structure", True, "A bonded body: discs glued by parallel bonds between t
           "(bonds across the gaps are beam elements of their length; the end columns carry "
           "half a cell of mass; the bonds then keep all of K42's stiffness)"),
       Key("contact_fraction", "float", "", 0.01, "share of the stiffness in the contact "
-          "springs (W26–W30)", lo=0.0),
+          "springs (W26–W30). Where bonds can break, the pieces meet the walls and each "
+          "other through these soft springs: a piece thrown against a wall can pass "
+          "through it (the run stops, exit 3); give `[contacts] kn` of the walls' and "
+          "pieces' contact (a trial's 5 MPa wall of 5 mm discs needed 5·10⁶ N/m)", lo=0.0),
       _pos("shear_factor", "", 1.0, "multiplies the shear springs"),
       _pos("sigma_c", "Pa", 1.0e30, "bond tensile strength σ̄_c (K21)"),
       _pos("tau_c", "Pa", 1.0e30, "bond shear strength τ̄_c (K22)"),
@@ -370,7 +373,10 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
           "the water's force on its boundary particles and the discs' on its DEM walls). "
           "force on discs that move: the fluid's force; on discs that are all held (a "
           "kinematic group, or a `region` inside a structure's clamp): the fluid's force "
-          "plus the free discs' contacts and the bonds to them, the support's load"),
+          "plus the free discs' contacts and the bonds to them, the support's load. A "
+          "force is the one on the body, per metre of thickness: water pushing it toward "
+          "−x reads Fx < 0, and M is its moment about `about`, counter-clockwise "
+          "positive"),
       Key("region", "region", "m", None, "only the body's discs in this region "
           "(displacement: e.g. the tip)"),
       Key("point", "point", "m", None, "pressure: where (weakly compressible: it carries "
