@@ -465,7 +465,7 @@ class Physics:
         # particle-steps/s on one core). A structure the fluid moves keeps physics.md's step
         # and the 0.25 h skin that suits it (Scene.fsi_coupled).
         skin_factor = opts.pop("skin", 0.25 if scene.fsi_coupled else 0.4)
-        cap = opts.pop("capacity_multiplier", 1.25)
+        cap = opts.pop("capacity_multiplier", NeighborConfig.capacity_multiplier)
         dem_skin = float(opts.pop("dem_skin", 0.5))
         rebuild_block = int(opts.pop("rebuild_block", default_rebuild_block()))
         if "sort_fluid" not in opts:

@@ -19,6 +19,7 @@ from ..build import (boundary_block, boundary_layers, box_walls, dam_speed, disc
                      polygon_lattice, sound_speed, domain, span_spacing, sph_params,
                      strip_ends, tank_walls, touching_pairs)
 from ..model import motion
+from ..model.config import NeighborConfig
 from ..model.params import BondParams, DemParams, FpiParams, Params
 from ..model.scene import BondBlock, FluidBlock, Scene, WallBlock
 from ..run import probes as P
@@ -638,6 +639,8 @@ def compose(spec: dict, path: str) -> SceneFile:
     # physics options
     ph = {**_defaults("physics"), **spec.get("physics", {})}
     options = {"x64": ph["x64"]}
+    if ph["capacity_multiplier"] != NeighborConfig.capacity_multiplier:
+        options["capacity_multiplier"] = ph["capacity_multiplier"]
     if windows:
         options["kinematic_motion"] = windows
     has_grains = solid is not None and bool(np.any(solid.grain))

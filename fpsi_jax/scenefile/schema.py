@@ -18,6 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from ..model.config import NeighborConfig
+
 REQUIRED = object()   # a key without a default must be given
 
 
@@ -352,6 +354,12 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
           "(ρ_f V_p g, exact for an isolated grain, unstable in a bed at its own voidage); "
           "default: 'shared' when grains touch each other at the start, else 'archimedes'",
           choices=("archimedes", "gradient", "shared")),
+      Key("capacity_multiplier", "float", "", NeighborConfig.capacity_multiplier, "room in the neighbour lists over "
+          "what the start needs. A scene that splashes, or whose structure breaks into "
+          "pieces, outgrows the start's lists: each time, the run grows them, recompiles "
+          "the step and redoes the chunk (tens of seconds each; the run's summary says "
+          "how long). A larger value starts them with more room, at the price of every "
+          "step (each fluid row pays for its slots)", lo=1.0, hi=10.0),
       Key("rho_tolerance", "float", "", 0.3, "stop when |ρ/ρ0 − 1| exceeds this", lo=0.0,
           lo_open=True))
 

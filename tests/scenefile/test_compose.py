@@ -178,3 +178,20 @@ def test_a_bad_motion_window_is_refused(tmp_path, edit, word):
     path.write_text(GATE.replace(*edit))
     with pytest.raises(scenefile.FileError, match=word.replace("(", r"\(")):
         scenefile.load(str(path))
+
+
+def test_list_room_is_read_from_the_physics_table(tmp_path):
+    """[physics] capacity_multiplier starts the neighbour lists with that room over the
+    start's need (a scene that breaks apart regrows them otherwise, recompiling each
+    time); the default leaves the option out."""
+    path = tmp_path / "room.toml"
+    path.write_text(GATE)
+    assert "capacity_multiplier" not in scenefile.load(str(path)).scene.options
+    path.write_text(GATE + "[physics]\ncapacity_multiplier = 2.0\n")
+    sf = scenefile.load(str(path))
+    assert sf.scene.options["capacity_multiplier"] == 2.0
+    roomy = Physics.for_scene(sf.scene)
+    path.write_text(GATE)
+    plain = Physics.for_scene(scenefile.load(str(path)).scene)
+    assert roomy.dem_neighbors.capacity_multiplier == 2.0
+    assert plain.dem_neighbors.capacity_multiplier == 1.25
