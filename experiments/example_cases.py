@@ -1,10 +1,10 @@
-"""Runs the four application examples (cases that are not validation benchmarks) at their
+"""Runs the five application examples (cases that are not validation benchmarks) at their
 full resolution, as a user would: ``fpsi run examples/<name>.toml --plot``.
 
 Writes under ``experiments/results/examples/``: each case's probe plot and snapshot
 (``<name>.png``, ``<name>_snapshot.png``), its probes as CSV, and ``examples.json`` with
 the run's size, wall time and the figures each plot is about (deck load, log travel, baffle
-tip deflection, flushing cone, the specimen's peak load). The HDF5 output goes to a temporary folder (tens of MB); the CSV keeps 400 rows.
+tip deflection, flushing cone, the specimen's peak load, the wave heights). The HDF5 output goes to a temporary folder (tens of MB); the CSV keeps 400 rows.
 
     python experiments/example_cases.py [--only sediment_flushing] [--t-end 0.1]
 """
@@ -23,7 +23,8 @@ import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 OUT = ROOT / "experiments" / "results" / "examples"
-CASES = ("flood_bridge_debris", "sloshing_baffle", "sediment_flushing", "compression")
+CASES = ("flood_bridge_debris", "sloshing_baffle", "sediment_flushing", "compression",
+         "wave_flume")
 
 
 def read_probes(path):
@@ -73,6 +74,15 @@ def figures(name, cols):
         return {"peak_load_N_per_m": fy[k], "peak_travel_m": -uy[k],
                 "bonds_broken_at_peak": cracks[k], "bonds_broken_at_end": cracks[-1],
                 "end_load_N_per_m": fy[-1]}
+    if name == "wave_flume":
+        t = cols["t [s]"]
+        out = {}
+        for k, v in cols.items():
+            if k.startswith("gauge"):            # crest-to-trough over the last 2 s
+                late = [y for ti, y in zip(t, v) if ti >= t[-1] - 2.0]
+                out[f"{k.split('.')[0]}_H_last_2s_m"] = max(late) - min(late)
+        out["piston_max_abs_Fx_N_per_m"] = max(abs(v) for v in col(cols, "piston_load.Fx"))
+        return out
     return {}
 
 
