@@ -109,6 +109,47 @@ def velocity(m, t, dtype=jnp.float32):
     raise TypeError(f"not a motion: {m!r}")
 
 
+def acceleration(m, t, dtype=jnp.float32):
+    """The group's prescribed acceleration (2,) at time ``t``: what a moving wall adds to
+    the pressure the fluid extrapolates onto it (Adami et al. 2012: g − a_w). A window's
+    is 0 (its jumps in velocity are not resolved); an oscillation's d²X/dt² exactly; a
+    track's the change of slope at each row over half the two segments, (s_i − s_{i−1}) /
+    ((t_{i+1} − t_{i−1})/2), interpolated linearly between rows (0 outside them)."""
+    t = jnp.asarray(t, dtype)
+    if isinstance(m, Window):
+        return jnp.zeros(2, dtype)
+    if isinstance(m, Oscillation):
+        on = (t >= m.t_on) & (t < m.t_off)
+        tau = jnp.maximum(t - m.t_on, 0.0)
+        w = 2.0 * math.pi / m.period
+        s = jnp.sin(w * tau + m.phase) - math.sin(m.phase)
+        ds = w * jnp.cos(w * tau + m.phase)
+        dds = -w * w * jnp.sin(w * tau + m.phase)
+        if m.ramp > 0.0:
+            a = jnp.clip(tau / m.ramp, 0.0, 1.0)
+            k = math.pi / m.ramp
+            inside = a < 1.0
+            r = 0.5 * (1.0 - jnp.cos(jnp.pi * a))
+            dr = jnp.where(inside, 0.5 * k * jnp.sin(jnp.pi * a), 0.0)
+            ddr = jnp.where(inside, 0.5 * k * k * jnp.cos(jnp.pi * a), 0.0)
+            rate = ddr * s + 2.0 * dr * ds + r * dds
+        else:
+            rate = dds
+        return jnp.where(on, rate * jnp.asarray([m.ax, m.ay], dtype), jnp.zeros(2, dtype))
+    if isinstance(m, Track):
+        ts = np.asarray(m.t, float)
+        slopes = np.stack([np.diff(m.x), np.diff(m.y)], axis=1) / np.diff(ts)[:, None]
+        s = np.vstack([np.zeros((1, 2)), slopes, np.zeros((1, 2))])     # at rest outside
+        half = 0.5 * (np.diff(np.concatenate([ts[:1], ts, ts[-1:]]))[:-1]
+                      + np.diff(np.concatenate([ts[:1], ts, ts[-1:]]))[1:])
+        acc = np.diff(s, axis=0) / np.maximum(half, 1e-300)[:, None]    # at each row
+        tj = jnp.asarray(ts, dtype)
+        inside = (t >= tj[0]) & (t <= tj[-1])
+        out = jnp.stack([jnp.interp(t, tj, jnp.asarray(acc[:, c], dtype)) for c in (0, 1)])
+        return jnp.where(inside, out, jnp.zeros(2, dtype))
+    raise TypeError(f"not a motion: {m!r}")
+
+
 def _overlap(t0, dt, lo, hi):
     """The length of [t0, t0 + dt] ∩ [lo, hi], formed from ``dt`` so that a sub-step
     wholly inside has exactly ``dt`` (lo may be −inf, hi inf)."""

@@ -555,6 +555,22 @@ class NewLevel(NamedTuple):
     rows: Any = None
 
 
+def prescribed_acceleration(phys: Physics, t, idx, a_s):
+    """``a_s`` (the structure particles' acceleration, or None) with the prescribed
+    acceleration of the kinematic groups that move (Physics.kinematic_motion) at time
+    ``t`` on their rows (``idx`` the structure particles' disc indices): a wave maker's
+    piston accelerates the water, and Adami's extrapolated pressure on a moving wall is
+    that of g − a_w (model/motion.py, :func:`~fpsi_jax.model.motion.acceleration`)."""
+    moving = [m for m in phys.kinematic_motion if not isinstance(m, motion.Window)]
+    if not moving:
+        return a_s
+    out = jnp.zeros((idx.shape[0], 2), jnp.result_type(t)) if a_s is None else a_s
+    for m in moving:
+        on = (idx >= m.a) & (idx < m.b)
+        out = jnp.where(on[:, None], motion.acceleration(m, t, out.dtype), out)
+    return out
+
+
 def sph_family(phys: Physics, state: State) -> SphFamily:
     """Gather the SPH family's arrays of ``state`` (see :class:`SphFamily`)."""
     f, b, fs, fp = state.fluid, state.boundary, state.fsi, state.fpi
@@ -565,6 +581,7 @@ def sph_family(phys: Physics, state: State) -> SphFamily:
         s = state.solid
         xs_, vs_ = s.x[fs.idx], s.v[fs.idx]
         a_s = s.acc[fs.idx] if phys.structure_acceleration else None
+        a_s = prescribed_acceleration(phys, state.t, fs.idx, a_s)
     idx, idx_g = state.nbrs.idx, None
     x_p = v_p = r_p = vol_p = None
     if fp is not None:

@@ -88,3 +88,28 @@ def test_the_mean_velocity_keeps_small_sub_steps_at_late_float32_times():
     o = motion.Oscillation(0, 1, 0.05, 0.0, 2.0, 0.0, 1.0, 0.0, INF)
     got = float(np.asarray(motion.mean_velocity(o, 100.25, 1e-5))[0])
     assert got == pytest.approx(float(v_at(o, 100.25 + 5e-6)[0]), rel=1e-4)
+
+
+@pytest.mark.parametrize("m", [
+    motion.Oscillation(0, 1, 0.02, 0.01, 0.8, 0.4, 0.5, 0.1, INF),
+    motion.Track(0, 1, tuple(np.linspace(0.2, 1.0, 81)),
+                 tuple(0.01 * np.sin(np.linspace(0.2, 1.0, 81) * 6.0)),
+                 tuple(np.zeros(81))),
+])
+def test_the_acceleration_is_the_second_derivative_of_the_stroke(m):
+    """What the moving wall's extrapolated pressure takes (g − a_w): an oscillation's
+    d²X/dt² through its ramp (central differences of V), a smooth track's to the
+    track's own resolution (a sampled sine: −36 X within 2 %)."""
+    import jax
+    with jax.enable_x64(True):
+        h = 1e-6
+        for t in (0.25, 0.45, 0.62, 0.9):
+            a = np.asarray(motion.acceleration(m, t, np.float64))
+            if isinstance(m, motion.Oscillation):
+                fd = (np.asarray(motion.velocity(m, t + h, np.float64))
+                      - np.asarray(motion.velocity(m, t - h, np.float64))) / (2 * h)
+                assert a == pytest.approx(fd, rel=1e-4, abs=1e-8)
+            else:
+                assert a[0] == pytest.approx(-36 * 0.01 * np.sin(6 * t), rel=0.02, abs=1e-4)
+        assert np.all(np.asarray(motion.acceleration(motion.Window(0, 1, 1.0, 0, 0, 1), 0.5))
+                      == 0.0)

@@ -928,3 +928,27 @@ def test_held_discs_take_minus_the_force_their_contacts_and_bonds_put_on_the_fre
         want = -np.array([f[free, 0].sum(), f[free, 1].sum(), m_free[free].sum()])
         scale = np.abs(f[free]).max() * (1.0 + np.abs(xs).max())
         np.testing.assert_allclose(r.sum(axis=0), want, atol=1e-12 * scale)
+
+
+def test_a_moving_walls_prescribed_acceleration_goes_to_its_rows_only():
+    """stages.prescribed_acceleration: the structure rows whose discs follow an
+    oscillation take its d²X/dt² (Adami's g − a_w for a wave maker's piston), the others
+    keep what they had (zero without Physics.structure_acceleration); a constant-velocity
+    window adds nothing."""
+    from types import SimpleNamespace
+
+    from fpsi_jax.model import motion
+    osc = motion.Oscillation(4, 6, 0.01, 0.0, 0.5, 0.0, 0.0, 0.0, float("inf"))
+    idx = jnp.asarray([3, 4, 5, 9])
+    t = jnp.asarray(0.1, jnp.float32)
+    a = stages.prescribed_acceleration(SimpleNamespace(kinematic_motion=(osc,)), t, idx, None)
+    w = 2 * np.pi / 0.5
+    want = -0.01 * w * w * np.sin(w * 0.1)
+    np.testing.assert_allclose(np.asarray(a)[:, 0], [0.0, want, want, 0.0], rtol=1e-5)
+    assert np.all(np.asarray(a)[:, 1] == 0.0)
+    held = jnp.ones((4, 2), jnp.float32)
+    a = stages.prescribed_acceleration(SimpleNamespace(kinematic_motion=(osc,)), t, idx, held)
+    np.testing.assert_allclose(np.asarray(a)[[0, 3]], 1.0)
+    win = motion.Window(4, 6, 1.0, 0.0, 0.0, 1.0)
+    assert stages.prescribed_acceleration(SimpleNamespace(kinematic_motion=(win,)), t, idx,
+                                          None) is None
