@@ -86,7 +86,7 @@ def first_harmonic(t, eta, period=PERIOD):
     return 2 * math.hypot(c[0], c[1])
 
 
-def run(dx, t_end, extra=()):
+def run(dx, t_end, extra=(), dt_factor=1.0):
     from fpsi_jax import scenefile
     from fpsi_jax.run.driver import simulate
     text = SCENE.format(t_end=t_end, dx=dx, x0=PADDLE + dx, length=LENGTH, depth=DEPTH,
@@ -111,7 +111,11 @@ def run(dx, t_end, extra=()):
         path.write_text(text)
         sf = scenefile.load(str(path))
         t0 = time.perf_counter()
-        res = simulate(sf.scene, probes=sf.probes, progress=False, every=0.02)
+        dt = None
+        if dt_factor != 1.0:              # a step shorter than the derived one
+            from fpsi_jax.run import setup
+            dt = dt_factor * float(setup(sf.scene)[1].dt)
+        res = simulate(sf.scene, probes=sf.probes, progress=False, every=0.02, dt=dt)
         wall = time.perf_counter() - t0
     t = np.asarray(res.times)
     return t, {k: np.asarray(v).ravel() for k, v in res.probes.items()}, wall, sf.scene.n_particles
@@ -125,6 +129,7 @@ def main():
                     "physics.xsph=false")
     ap.add_argument("--tag", default="", help="suffix of the result files (a variant)")
     ap.add_argument("--keep", action="store_true", help="also write the gauges' records (.npz)")
+    ap.add_argument("--dt-factor", type=float, default=1.0, help="the step, × the derived one")
     a = ap.parse_args()
     name = "wave_maker" + (f"_{a.tag}" if a.tag else "")
     k, ratio, cg = theory()
@@ -133,7 +138,7 @@ def main():
           f"H/S = {ratio:.4f}, H = {h_th * 1e3:.2f} mm, c_g = {cg:.3f} m/s")
     rows, records = [], {}
     for dx in a.dx:
-        t, probes, wall, n = run(dx, a.t_end, a.set)
+        t, probes, wall, n = run(dx, a.t_end, a.set, a.dt_factor)
         records[dx] = (t, probes)
         np.savez(OUT / f"{name}_dx{dx:g}.npz", t=t, **probes) if a.keep else None
         for i, x in enumerate(GAUGES):
@@ -145,7 +150,9 @@ def main():
             n_per = int((stop - start) / PERIOD)          # whole periods in the window
             mm = m & (t <= start + n_per * PERIOD)
             h1 = first_harmonic(t[mm], probes[f"g{i}"][mm]) if n_per else float("nan")
-            rows.append(dict(dx=dx, settings=" ".join(a.set) or "defaults", particles=n, gauge_m=x, window_s=f"{start:.2f}-{stop:.2f}",
+            rows.append(dict(dx=dx, settings=" ".join(a.set + ([f"dt x{a.dt_factor:g}"]
+                                                           if a.dt_factor != 1 else []))
+                             or "defaults", particles=n, gauge_m=x, window_s=f"{start:.2f}-{stop:.2f}",
                              waves=int(hs.size), H_mm=round(h * 1e3, 3),
                              H1_mm=round(h1 * 1e3, 3), rel_error_H1=round(h1 / h_th - 1, 4),
                              H_theory_mm=round(h_th * 1e3, 3),
