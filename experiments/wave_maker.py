@@ -4,12 +4,16 @@ A piston (a `[[kinematic]]` body with `oscillate`) of stroke S = 2 cm at period 
 in water h = 0.1 m deep (kh = 0.886, L = 0.709 m) makes waves of height H = 0.876 S
 (Biesel & Suquet 1951; Dean & Dalrymple 1991, eq. 6.22: H/S = 2(cosh 2kh − 1)/(sinh 2kh +
 2kh)), travelling at the group velocity c_g = 0.72 m/s. Gauges 0.4, 0.8 and 1.2 m from
-the piston read the free surface; each gauge's wave height is the mean zero-up-crossing
+the piston read the free surface (kernel h = 2 dx, no artificial viscosity; docs/physics.md,
+*Waves*); each gauge's wave height is the mean zero-up-crossing
 height over the waves that reach it at full stroke (after the stroke's 2-period ramp) and
 before the wave reflected at the flume's end comes back. The run repeats at three fluid
 spacings; what the SPH fluid loses in height with distance is its numerical damping.
 
-    python experiments/wave_maker.py [--dx 0.01 0.005 0.0025] [--t-end 6]
+    python experiments/wave_maker.py [--dx 0.01 0.005 0.0025] [--h-factor 2] [--alpha 0]
+
+(``--h-factor 1.25 --alpha 0.02 --tag h1.25dx_alpha0.02``: the default kernel and the dam
+breaks' viscosity, which lose 15-20 % of the height by 0.4 m.)
 
 Writes experiments/results/wave_maker.csv (spacing, gauge, the mean zero-up-crossing H
 and the height H1 of the wave-frequency component, each against H_theory, waves counted,
@@ -43,7 +47,8 @@ headroom = 1.0
 density = 1000.0
 viscosity = 1.0e-3
 dx = {dx}
-alpha = 0.02
+h = {h}
+alpha = {alpha}
 [[fluid.region]]
 box = [{x0}, 0.0, {length}, {depth}]
 [tank]
@@ -86,10 +91,10 @@ def first_harmonic(t, eta, period=PERIOD):
     return 2 * math.hypot(c[0], c[1])
 
 
-def run(dx, t_end, extra=(), dt_factor=1.0):
+def run(dx, t_end, extra=(), dt_factor=1.0, h_factor=2.0, alpha=0.0):
     from fpsi_jax import scenefile
     from fpsi_jax.run.driver import simulate
-    text = SCENE.format(t_end=t_end, dx=dx, x0=PADDLE + dx, length=LENGTH, depth=DEPTH,
+    text = SCENE.format(t_end=t_end, dx=dx, h=h_factor * dx, alpha=alpha, x0=PADDLE + dx, length=LENGTH, depth=DEPTH,
                         height=2 * DEPTH, paddle=PADDLE, height_paddle=1.8 * DEPTH,
                         d=min(dx, 0.005), amp=STROKE / 2, period=PERIOD, ramp=RAMP)
     for item in extra:                    # table.key=value into its table
@@ -130,6 +135,9 @@ def main():
     ap.add_argument("--tag", default="", help="suffix of the result files (a variant)")
     ap.add_argument("--keep", action="store_true", help="also write the gauges' records (.npz)")
     ap.add_argument("--dt-factor", type=float, default=1.0, help="the step, × the derived one")
+    ap.add_argument("--h-factor", type=float, default=2.0, help="h / dx (the default 1.25 "
+                    "damps waves: docs/physics.md, Waves)")
+    ap.add_argument("--alpha", type=float, default=0.0, help="artificial viscosity α")
     a = ap.parse_args()
     name = "wave_maker" + (f"_{a.tag}" if a.tag else "")
     k, ratio, cg = theory()
@@ -138,7 +146,7 @@ def main():
           f"H/S = {ratio:.4f}, H = {h_th * 1e3:.2f} mm, c_g = {cg:.3f} m/s")
     rows, records = [], {}
     for dx in a.dx:
-        t, probes, wall, n = run(dx, a.t_end, a.set, a.dt_factor)
+        t, probes, wall, n = run(dx, a.t_end, a.set, a.dt_factor, a.h_factor, a.alpha)
         records[dx] = (t, probes)
         np.savez(OUT / f"{name}_dx{dx:g}.npz", t=t, **probes) if a.keep else None
         for i, x in enumerate(GAUGES):
@@ -150,9 +158,10 @@ def main():
             n_per = int((stop - start) / PERIOD)          # whole periods in the window
             mm = m & (t <= start + n_per * PERIOD)
             h1 = first_harmonic(t[mm], probes[f"g{i}"][mm]) if n_per else float("nan")
-            rows.append(dict(dx=dx, settings=" ".join(a.set + ([f"dt x{a.dt_factor:g}"]
-                                                           if a.dt_factor != 1 else []))
-                             or "defaults", particles=n, gauge_m=x, window_s=f"{start:.2f}-{stop:.2f}",
+            rows.append(dict(dx=dx, h_over_dx=a.h_factor, alpha=a.alpha,
+                             settings=" ".join(a.set + ([f"dt x{a.dt_factor:g}"]
+                                                        if a.dt_factor != 1 else [])) or "-",
+                             particles=n, gauge_m=x, window_s=f"{start:.2f}-{stop:.2f}",
                              waves=int(hs.size), H_mm=round(h * 1e3, 3),
                              H1_mm=round(h1 * 1e3, 3), rel_error_H1=round(h1 / h_th - 1, 4),
                              H_theory_mm=round(h_th * 1e3, 3),
