@@ -93,6 +93,10 @@ def quantity(key, text: str) -> float:
     """``"<value> <unit>"`` in the key's SI unit; ValueError naming the unit if it measures
     something else."""
     parts = split_quantity(text)
+    if any(c in text for c in "()*^") or re.search(r"\b(sin|cos|exp|pi|t)\b", text):
+        raise ValueError(f"= {text!r} is an expression; a scene file takes numbers, with or "
+                         f"without a unit [{key.unit}] (a motion in time: a [[kinematic]] "
+                         "body's `oscillate` or `track`)")
     if parts is None:
         raise ValueError(f"= {text!r} is not a number [{key.unit}]")
     value, unit = parts

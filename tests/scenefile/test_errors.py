@@ -60,6 +60,8 @@ BAD = [
     ("inverted box", lambda t: edit(t, "box = [0.0, 0.0, 0.1, 0.1]",
                                     "box = [0.1, 0.0, 0.0, 0.1]"),
      ["[[fluid.region]] #1", "key 'box'", "x1 > x0"]),
+    ("an expression for a number", lambda t: edit(t, "E = 1.0e6", 'E = "2*1e6 Pa"'),
+     ["[[structure]] 'gate'", "key 'E'", "is an expression", "`oscillate` or `track`"]),
     ("disc spacing past its box", lambda t: edit(t, "d = 0.005", "d = 0.05"),
      ["[[structure]] 'gate'", "key 'd' = 0.05 m is larger than the 0.01 x 0.08 m block",
       "(its box)"]),
