@@ -73,14 +73,22 @@ class Track(NamedTuple):
     y: tuple
 
 
+def _segments(m: Track):
+    """A track's row times (n,) and the velocity of each segment between rows (n − 1, 2)."""
+    ts = np.asarray(m.t, float)
+    return ts, np.stack([np.diff(m.x), np.diff(m.y)], axis=1) / np.diff(ts)[:, None]
+
+
 def _ramp(tau, ramp):
-    """r(τ) = ½(1 − cos(πτ/T_r)) for τ < T_r, else 1, and dr/dτ."""
+    """r(τ) = ½(1 − cos(πτ/T_r)) for τ < T_r, else 1, with dr/dτ and d²r/dτ²."""
     if ramp <= 0.0:
-        return jnp.ones_like(tau), jnp.zeros_like(tau)
+        return jnp.ones_like(tau), jnp.zeros_like(tau), jnp.zeros_like(tau)
     s = jnp.clip(tau / ramp, 0.0, 1.0)
+    k = math.pi / ramp
     r = 0.5 * (1.0 - jnp.cos(jnp.pi * s))
-    dr = jnp.where(s < 1.0, 0.5 * jnp.pi / ramp * jnp.sin(jnp.pi * s), 0.0)
-    return r, dr
+    dr = jnp.where(s < 1.0, 0.5 * k * jnp.sin(jnp.pi * s), 0.0)
+    ddr = jnp.where(s < 1.0, 0.5 * k * k * jnp.cos(jnp.pi * s), 0.0)
+    return r, dr, ddr
 
 
 def velocity(m, t, dtype=jnp.float32):
@@ -95,13 +103,12 @@ def velocity(m, t, dtype=jnp.float32):
         on = (t >= m.t_on) & (t < m.t_off)
         tau = jnp.maximum(t - m.t_on, 0.0)
         w = 2.0 * math.pi / m.period
-        r, dr = _ramp(tau, m.ramp)
+        r, dr, _ = _ramp(tau, m.ramp)
         rate = dr * (jnp.sin(w * tau + m.phase) - math.sin(m.phase)) \
             + r * w * jnp.cos(w * tau + m.phase)
         return jnp.where(on, rate * jnp.asarray([m.ax, m.ay], dtype), zero)
     if isinstance(m, Track):
-        ts = np.asarray(m.t, float)
-        slopes = np.stack([np.diff(m.x), np.diff(m.y)], axis=1) / np.diff(ts)[:, None]
+        ts, slopes = _segments(m)
         k = jnp.searchsorted(jnp.asarray(ts, dtype), t, side="right") - 1
         inside = (k >= 0) & (k < len(ts) - 1)
         v = jnp.asarray(slopes, dtype)[jnp.clip(k, 0, len(ts) - 2)]
@@ -125,20 +132,11 @@ def acceleration(m, t, dtype=jnp.float32):
         s = jnp.sin(w * tau + m.phase) - math.sin(m.phase)
         ds = w * jnp.cos(w * tau + m.phase)
         dds = -w * w * jnp.sin(w * tau + m.phase)
-        if m.ramp > 0.0:
-            a = jnp.clip(tau / m.ramp, 0.0, 1.0)
-            k = math.pi / m.ramp
-            inside = a < 1.0
-            r = 0.5 * (1.0 - jnp.cos(jnp.pi * a))
-            dr = jnp.where(inside, 0.5 * k * jnp.sin(jnp.pi * a), 0.0)
-            ddr = jnp.where(inside, 0.5 * k * k * jnp.cos(jnp.pi * a), 0.0)
-            rate = ddr * s + 2.0 * dr * ds + r * dds
-        else:
-            rate = dds
+        r, dr, ddr = _ramp(tau, m.ramp)
+        rate = ddr * s + 2.0 * dr * ds + r * dds
         return jnp.where(on, rate * jnp.asarray([m.ax, m.ay], dtype), jnp.zeros(2, dtype))
     if isinstance(m, Track):
-        ts = np.asarray(m.t, float)
-        slopes = np.stack([np.diff(m.x), np.diff(m.y)], axis=1) / np.diff(ts)[:, None]
+        ts, slopes = _segments(m)
         s = np.vstack([np.zeros((1, 2)), slopes, np.zeros((1, 2))])     # at rest outside
         half = 0.5 * (np.diff(np.concatenate([ts[:1], ts, ts[-1:]]))[:-1]
                       + np.diff(np.concatenate([ts[:1], ts, ts[-1:]]))[1:])
@@ -180,8 +178,7 @@ def mean_velocity(m, t0, dt, dtype=jnp.float32):
             dx = ds
         return dx / dt * jnp.asarray([m.ax, m.ay], dtype)
     if isinstance(m, Track):
-        ts = np.asarray(m.t, float)
-        slopes = np.stack([np.diff(m.x), np.diff(m.y)], axis=1) / np.diff(ts)[:, None]
+        ts, slopes = _segments(m)
         frac = _overlap(t0, dt, jnp.asarray(ts[:-1], dtype), jnp.asarray(ts[1:], dtype)) / dt
         return frac @ jnp.asarray(slopes, dtype)
     raise TypeError(f"not a motion: {m!r}")
