@@ -105,7 +105,7 @@ def separate(x, d, width, tol=1e-9, max_sweeps=1000):
 
 @scene
 def grain_bed(*, width=0.0504, water_height=0.1008, d=0.0024, layers=4, packing="hex", seed=0,
-              rho_grain=2500.0, dx=0.0024, dx_boundary=0.0015, h0=0.003, mu=1.0e-3,
+              rho_grain=2500.0, dx=0.0024, dx_boundary=0.0015, h0=None, mu=1.0e-3,
               c0=None, kn=1.021e9, ks=1.024e7, friction=0.3, beta_n=0.3,
               voidage="area", eps_floor=0.0, fpi_pressure="shared", drag="sphere",
               alpha_av=0.02, delta=0.1, wall_images=True, t_end=2.0) -> Scene:
@@ -122,8 +122,14 @@ def grain_bed(*, width=0.0504, water_height=0.1008, d=0.0024, layers=4, packing=
     ε ρ0 Δx² of their cell, so the start is hydrostatic. The grains' pressure force is
     their part of the cells' pressure forces with the mixture's continuity
     (``fpi_pressure`` 'shared', fpi.py: energy-conserving); with ``wall_images`` the grains'
-    images in the walls count in the voidage (fpi.wall_images). W6.2.2's numerical parameters
-    (fluid 2.4 mm fitted to the width, boundary 1.5 mm, h 3 mm), contacts of W6.3."""
+    images in the walls count in the voidage (fpi.wall_images). W6.2.2's fluid and
+    boundary spacings (2.4 mm fitted to the width, 1.5 mm) and W6.3's contacts; the kernel
+    ``h0`` = 2 dx (W6.2.2 took 3 mm, 1.25 dx). At 1.25 dx the water over the bed never came
+    to rest (bursts to 4.9 % / 5.9 % of √(gH), hex / random) and, in a flume, waves lost
+    15–20 % of their height and a standing wave 78 % of its amplitude in four periods: two
+    and a half spacings of support are too few at a free surface (docs/physics.md,
+    *Waves*, *Packed beds*)."""
+    h0 = 2.0 * dx if h0 is None else h0
     check_positive(width=width, water_height=water_height, d=d, layers=layers,
                    rho_grain=rho_grain, dx=dx, dx_boundary=dx_boundary, h0=h0, kn=kn)
     check_voidage(voidage)
