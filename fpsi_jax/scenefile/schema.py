@@ -195,7 +195,7 @@ table("structure", True, "A bonded body: discs glued by parallel bonds between t
           "springs (W26–W30). Where bonds can break, the pieces meet the walls and each "
           "other through these soft springs: a piece thrown against a wall can pass "
           "through it (the run stops, exit 3); give `[contacts] kn` of the walls' and "
-          "pieces' contact (a trial's 5 MPa wall of 5 mm discs needed 5·10⁶ N/m)", lo=0.0),
+          "pieces' contact (a 5 MPa wall of 5 mm discs broken by a bore needed 5·10⁶ N/m)", lo=0.0),
       _pos("shear_factor", "", 1.0, "multiplies the shear springs"),
       _pos("sigma_c", "Pa", 1.0e30, "bond tensile strength σ̄_c (K21)"),
       _pos("tau_c", "Pa", 1.0e30, "bond shear strength τ̄_c (K22)"),
@@ -539,12 +539,12 @@ window in which bonds break, with the secant Jacobian (`--jacobian fd`), from a 
 between the stress the bonds reach and the truth; where no bond reaches the strength the
 residuals do not move with it, and the fit says so (an infinite standard error and a
 note) instead of a value. A record of an impact with splash is chaotic: its loss has
-several minima in a stiffness (a trial's post under a bore: loss 0.022 / 0.043 / 0.020
+several minima in a stiffness (a post under a bore: loss 0.022 / 0.043 / 0.020
 at E = 2.5 / 3.0 / 3.5 MPa for a truth of 2), so fit a short window around the first
 impact, from several starts (`--start`), and keep the lowest loss; a fit that stops
 without improving prints that its standard errors are the curvature where it stalled.
 'ad' and 'fd' are different compiled programs, so the float32 round-off of a chaotic run,
-and with it the loss at the same start, differs between them (by 0.7 % in that trial).
+and with it the loss at the same start, differs between them (by 0.7 % for that post).
 """
 
 

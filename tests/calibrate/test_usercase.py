@@ -80,7 +80,7 @@ def test_start_values_of_the_file_follow_the_fitted_names(sf):
 
 def test_a_runs_own_probe_file_is_taken_with_its_last_step_past_t_end(sf, tmp_path):
     """`fpsi run` records up to its last step, ⌈t_end/Δt⌉ Δt, a sample past t_end: the
-    file is taken as data, that sample left out of the default window (was refused)."""
+    file is taken as data, that sample left out of the default window."""
     t_end = float(sf.scene.t_end)
     t = np.append(np.arange(1, 41) * t_end / 40, t_end + 0.4 * t_end / 40)
     rows = "".join(f"{a:.9g}, {1e3 * a:.6g}, 0\n" for a in t)
@@ -205,7 +205,7 @@ def test_summary_of_a_free_vibration_fit_gives_the_frequencies_and_damping_ratio
 
 def test_the_standard_errors_of_a_stalled_fit_say_so():
     """A fit that stopped without improving (a local minimum of a chaotic impact's loss:
-    a trial's fit of E stalled at 3.9 MPa for a truth of 2 and printed ± 8.9 kPa) says
+    a fit of a post's E under a bore stalled at 3.9 MPa for a truth of 2, ± 8.9 kPa) says
     its errors are the curvature where it stalled; a converged fit's note is the scale."""
     stalled = uc._stderr_note({"s_from": "RSS/(m - p)"}, "no improvement in 3 steps")
     assert stalled.startswith("RSS/(m - p); the fit stopped (no improvement in 3 steps)")
