@@ -109,21 +109,30 @@ def test_compressed_specimen_rises_linearly_peaks_and_fails():
     assert stress[-1] < 0.1 * stress[peak]
 
 
-@pytest.mark.slow             # ~40 s on 2 cores: make test-slow
+@pytest.mark.slow             # ~80 s on one core: make test-slow
 def test_the_piston_makes_waves_of_the_height_linear_theory_gives():
-    """examples/wave_flume.toml (dx 5 mm, h = 2 dx) to 3.4 s: the first full wave at the
-    gauge 0.4 m from the piston is Biesel's H = 0.876 S within 5 % (measured −2.6 %;
-    the mean of four waves −0.3 %, experiments/wave_maker.py), and the piston's mean load over the
-    last period is the hydrostatic ρ g h²/2 = 49.05 N/m within 10 %."""
+    """examples/wave_flume.toml (dx 5 mm, h = 2 dx) to 4.2 s: the first two full waves at
+    the gauge 0.4 m from the piston have Biesel's height H = 0.876 S within 8 % in their
+    wave-frequency component (−3.9 % here, −3.2 % over four waves in
+    experiments/wave_maker.py; the same run compiled for two test processes read a
+    crest-to-trough height 2.6 % lower; the default kernel's waves, −15 to −20 %, fail
+    it), and the piston's mean load over the last two periods is the hydrostatic
+    ρ g h²/2 = 49.05 N/m within 10 %."""
     path = str(EXAMPLES / "wave_flume.toml")
     spec = scenefile.read(path)
-    spec["scene"]["t_end"] = 3.4
+    spec["scene"]["t_end"] = 4.2
     case = scenefile.compose(spec, path)
     res, p = run(case)
     t = np.asarray(res.times)
     fx = p["piston_load"][:, 0]
     assert -fx[t >= 2.6].mean() == pytest.approx(1000 * 9.81 * 0.1 ** 2 / 2, rel=0.1)
-    eta = p["gauge_0.4m"][:, 0]
-    late = t >= 3.4 - 0.8
-    height = eta[late].max() - eta[late].min()
-    assert height == pytest.approx(0.876 * 0.02, rel=0.05)
+    # the height of the wave-frequency component over the last two periods, a
+    # least-squares fit of all their samples (the crest-to-trough height of one wave
+    # moves by ±3 % with which particle is highest within a spacing of the gauge: 17.06
+    # mm in one run, 16.62 mm in another compiled for two processes)
+    late = t >= 4.2 - 1.6
+    w = 2 * np.pi / 0.8
+    eta = p["gauge_0.4m"][late, 0]
+    A = np.stack([np.cos(w * t[late]), np.sin(w * t[late]), np.ones(late.sum())], axis=1)
+    c = np.linalg.lstsq(A, eta, rcond=None)[0]
+    assert 2 * np.hypot(c[0], c[1]) == pytest.approx(0.876 * 0.02, rel=0.08)
