@@ -17,10 +17,13 @@ EXAMPLES = pathlib.Path(__file__).resolve().parents[2] / "examples"
 
 
 def coarse(name, t_end):
-    """The example with the fluid spacing doubled and the run ending at ``t_end``."""
+    """The example with the fluid spacing (and a smoothing length it gives) doubled and the
+    run ending at ``t_end``."""
     path = str(EXAMPLES / f"{name}.toml")
     spec = scenefile.read(path)
     spec["fluid"]["dx"] *= 2
+    if spec["fluid"].get("h") is not None:
+        spec["fluid"]["h"] *= 2
     spec["scene"]["t_end"] = t_end
     return scenefile.compose(spec, path)
 
