@@ -146,7 +146,7 @@ def run_file(args) -> int:
     from . import usercase as uc
     sf = scenefile.load(args.case)
     physics = ov.apply(sf.scene, set_pairs(args.set, ov.known_to(sf.scene)),
-                       f"scene file {args.case!r}")
+                       f"scene file {args.case!r}", listing=args.case)
     s = uc.settings(sf, data=args.data, fit=args.fit, probe=args.probe, window=args.window,
                     holdout=args.holdout, target=args.target, start=args.start,
                     steps=args.steps, optimizer=args.optimizer, jacobian=args.jacobian)

@@ -16,6 +16,8 @@ from .model.errors import Interrupted, ParameterError, SimulationError, number
 
 def cmd_list(args):
     from . import cases
+    if args.name is not None:
+        return list_keys(args.name)
     print("scenes:")
     for name, fn in cases.SCENES.items():
         doc = (fn.__doc__ or "").strip().splitlines()[0]
@@ -26,6 +28,25 @@ def cmd_list(args):
     for command in _plugins().values():
         if hasattr(command, "list_cases"):
             command.list_cases()
+    return 0
+
+
+def list_keys(name: str) -> int:
+    """``fpsi list NAME``: the keys ``--set`` takes for a registered scene, a validation case
+    (its scene, as the case builds it) or a scene file, with their values."""
+    from . import cases
+    from .cases import overrides as ov
+    if is_scene_file(name):
+        from . import scenefile
+        scene, scene_name = scenefile.load(name).scene, None
+    else:
+        scene_name = cases.SCENE_OF.get(name, name)
+        if scene_name not in cases.SCENES:
+            raise ParameterError(f"{name!r} is no scene, validation case or scene file (.toml); "
+                                 f"allowed: {', '.join(sorted(set(cases.SCENES) | set(cases.SCENE_OF)))}")
+        scene = cases.build(scene_name)
+    print(f"--set KEY=VALUE keys of {name}:")
+    print("\n".join(ov.key_table(scene, scene_name)))
     return 0
 
 
@@ -95,7 +116,7 @@ def cmd_run(args):
         case = scenefile.load(args.scene)
         scene, probes = case.scene, case.probes
         phys = ov.apply(scene, set_pairs(args.set, ov.known_to(scene)),
-                        f"scene file {args.scene!r}")
+                        f"scene file {args.scene!r}", listing=args.scene)
         out = args.out or case.output["file"] or f"results/{scene.name}.h5"
         every = args.every if args.every is not None else case.output["every"]
         want_plot = args.plot or case.output["plot"]
@@ -241,7 +262,10 @@ class _Parser(argparse.ArgumentParser):
 def make_parser():
     p = _Parser(prog="fpsi", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True)
-    sub.add_parser("list", help="list scenes and validation cases")
+    ls = sub.add_parser("list", help="list scenes and validation cases, or the keys --set "
+                        "takes for one of them or a scene file")
+    ls.add_argument("name", nargs="?", default=None,
+                    help="a scene, validation case or scene file: list its --set keys")
     r = sub.add_parser("run", help="run a scene", epilog=(
         "exit codes: 0 done; 2 bad input (nothing written); 3 the run went unstable (the "
         "file keeps every good frame); 4 the output could not be written (e.g. a full "

@@ -6,6 +6,9 @@ ParameterError before anything is compiled or written.
 """
 from __future__ import annotations
 
+import difflib
+import enum
+import inspect
 import json
 
 from . import registry
@@ -50,8 +53,62 @@ def build(scene_name: str, overrides: dict, base: dict | None = None):
     for k, v in overrides.items():
         (kw if k in keys else rest)[k] = v
     scene = registry.build(scene_name, **kw)
-    return scene, apply(scene, rest, f"scene {scene_name!r}",
-                        f"scene parameters {', '.join(keys)}; ")
+    return scene, apply(scene, rest, f"scene {scene_name!r}", keys, scene_name)
+
+
+def unknown_key(key: str, what: str, scene_keys, params, listing: str) -> ParameterError:
+    """The one-line error for a ``--set`` key that nothing takes: the nearest keys it may
+    have meant (:func:`difflib.get_close_matches`) and the command that lists them all."""
+    names = params.names() if params is not None else []
+    known = dict.fromkeys([*scene_keys, "dt", *names, *(n.split(".")[-1] for n in names),
+                           *Physics.OPTIONS])
+    near = difflib.get_close_matches(key, list(known), n=3, cutoff=0.6)
+    hint = f"did you mean {' or '.join(map(repr, near))}? " if near else ""
+    return ParameterError(f"unknown key {key!r} for {what}; {hint}`fpsi list {listing}` "
+                          "lists the keys it takes")
+
+
+def key_table(scene, scene_name: str | None = None) -> list[str]:
+    """The keys ``--set`` takes for a built ``scene``, one per line with its value, for
+    ``fpsi list NAME``: the builder's keywords (a registered scene), ``dt``, the Params
+    leaves and the Physics options with their defaults (or the scene's own setting)."""
+    lines = []
+    if scene_name is not None:
+        sig = inspect.signature(registry.get(scene_name)).parameters
+        lines.append("scene parameters (the scene is rebuilt with them):")
+        lines += [f"  {k:28s} {p.default!r}" for k, p in sig.items()]
+    lines.append("parameters (Params leaves; a bare name where it is unambiguous):")
+    for k, v in scene.params.flat().items():
+        if k == "dt":
+            given = "the stability bound" if scene.dt is None else f"{scene.dt:g}"
+            lines.append(f"  {k:28s} {given} (the step asked for; a larger one than the "
+                         "bound is refused)")
+        else:
+            lines.append(f"  {k:28s} {_value(v)}")
+    lines.append("physics options (static; each recompiles the step):")
+    phys = Physics.for_scene(scene)
+    for k in Physics.OPTIONS:
+        v = getattr(phys, k, scene.options.get(k, "derived from the scene"))
+        kind = Physics.CHOICES.get(k)
+        choices = f"  [{', '.join(m.value for m in kind)}]" if kind is not None else ""
+        lines.append(f"  {k:28s} {_value(v)}{choices}")
+    return lines
+
+
+def _value(v) -> str:
+    if isinstance(v, bool):
+        return str(v).lower()
+    if isinstance(v, enum.Enum):
+        return repr(v.value)
+    if isinstance(v, str):
+        return v
+    if isinstance(v, tuple) and (len(v) > 4 or not all(isinstance(e, (int, float))
+                                                        for e in v)):
+        return f"({len(v)} entries set by the scene)"
+    try:
+        return f"{float(v):g}"
+    except (TypeError, ValueError):
+        return repr(v)
 
 
 def known_to(scene):
@@ -62,10 +119,11 @@ def known_to(scene):
     return lambda k: k == "dt" or k in Physics.OPTIONS or k in names or k in leaves
 
 
-def apply(scene, overrides: dict, what: str, also: str = "") -> dict:
+def apply(scene, overrides: dict, what: str, scene_keys=(), listing: str = "") -> dict:
     """Apply ``overrides`` that are not builder keywords to a built ``scene``: ``dt``, Params
     leaves (``mu`` or ``sph.mu``) and Physics options (returned, checked). ``what`` names
-    the scene in errors; ``also`` lists what else would have been allowed."""
+    the scene in errors, ``scene_keys`` are the builder keywords that were also allowed and
+    ``fpsi list {listing}`` lists every key."""
     phys_opts = {}
     params = scene.params
     for k, v in overrides.items():
@@ -86,12 +144,10 @@ def apply(scene, overrides: dict, what: str, also: str = "") -> dict:
             params = params.set(k, v)
         except ParameterError as e:
             if "unknown parameter" in str(e):
-                in_file = ("; the scene's own keys (its [fluid] dx, a structure's E, …) "
-                           "are set in the file" if what.startswith("scene file") else "")
-                raise ParameterError(
-                    f"unknown key {k!r} for {what}{in_file}; allowed: {also}params "
-                    f"{', '.join(params.names())}; physics options "
-                    f"{', '.join(Physics.OPTIONS)}") from None
+                in_file = (" (the scene's own keys, its [fluid] dx or a structure's E, are "
+                           "set in the file)" if what.startswith("scene file") else "")
+                raise unknown_key(k, what + in_file, scene_keys, params,
+                                  listing or "SCENE") from None
             raise
     scene.params = params
     Physics.for_scene(scene, **phys_opts)   # validate the options now

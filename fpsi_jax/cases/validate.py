@@ -43,11 +43,9 @@ def check_keys(case: str, overrides: dict) -> None:
         try:
             params.resolve(k)
         except ParameterError:
-            raise ParameterError(
-                f"--set {k}: the validation case {case!r} (scene {scene!r}) has no such key; "
-                f"allowed: scene parameters {', '.join(sorted(keys))}; params "
-                f"{', '.join(params.names())}; physics options "
-                f"{', '.join(Physics.OPTIONS)}") from None
+            from .overrides import unknown_key
+            raise unknown_key(k, f"the validation case {case!r} (scene {scene!r})", keys,
+                              params, case) from None
 
 
 def format_table(records) -> str:

@@ -490,6 +490,9 @@ def compose(spec: dict, path: str) -> SceneFile:
     sc = spec["scene"]
     g_vec = sc["gravity"]
     g = math.hypot(*g_vec)
+    if g_vec[1] > 0:
+        fail(path, "scene", f"key 'gravity' = {list(g_vec)} points up: y is up, so gravity "
+             f"takes a negative y component, e.g. [0, -{g_vec[1]:g}]")
     name = sc["name"] or os.path.splitext(os.path.basename(path))[0]
     fluid = sp = h = None
     v_max = sc["v_max"]

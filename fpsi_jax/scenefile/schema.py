@@ -74,7 +74,8 @@ table("scene", False, "What is run, for how long, and where.",
            "refused). The bound resolves a free collision of discs with ≈ 4 steps, and the "
            "restitution of β then comes out ~10 % low: for collisional granular flows give "
            "≤ tc/50, tc = π/√(kn/m*(1 − β²)) (docs/physics.md, DEM contacts)"),
-      Key("gravity", "point", "m/s²", (0.0, -9.81), "gravitational acceleration"),
+      Key("gravity", "point", "m/s²", (0.0, -9.81), "gravitational acceleration (y is up: "
+          "a positive y component is refused; a tilted flume may tilt it)"),
       _pos("v_max", "m/s", None, "the flow's velocity scale (sets c0 = 10 v_max); default "
            "√(2 g H) with H the fluid's height, else the fastest initial disc speed, else 1"),
       Key("domain", "box", "m", None, "rectangle every particle must stay inside (default: "

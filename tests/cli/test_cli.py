@@ -12,6 +12,11 @@ from fpsi_jax.run import io
 @pytest.mark.parametrize("argv, word", [
     (["run", "nope"], "unknown scene 'nope'"),
     (["run", "dam_break", "--set", "foo=1"], "unknown key 'foo'"),
+    (["run", "dam_break", "--set", "dxx=0.01"],
+     "did you mean 'dx'? `fpsi list dam_break` lists the keys it takes"),
+    (["validate", "dam_break", "--set", "colum_height=0.1"], "did you mean 'column_height'"),
+    (["run", "FILE", "--set", "alpa=0.1"], "did you mean 'alpha'"),
+    (["list", "nope"], "'nope' is no scene, validation case or scene file"),
     (["run", "dam_break", "--set", "dx=-1"], "dx = -1 is out of range; allowed (0, inf)"),
     (["run", "dam_break", "--set", "eps_xsph=2"], "eps_xsph = 2 is out of range"),
     (["run", "dam_break", "--set", "kernel=gauss"], "kernel = 'gauss' is not a choice"),
@@ -38,6 +43,23 @@ def test_bad_input_exits_2_with_one_line(argv, word, tmp_path, capsys):
     assert rc == 2
     assert len(err.splitlines()) == 1 and word in err
     assert not out.exists()
+
+
+def test_list_names_the_keys_set_takes_with_their_values(capsys):
+    """``fpsi list SCENE``: the builder's keywords with their defaults, the Params leaves
+    and the Physics options with the scene's values (a scene file: no builder keywords);
+    a validation case lists its scene's."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    assert cli.main(["list", "dam_break"]) == 0
+    out = capsys.readouterr().out
+    assert "  dx                           0.005\n" in out
+    assert "  sph.mu                       0.00089\n" in out
+    assert "  kernel                       'wendland'  [wendland, cubic]\n" in out
+    assert cli.main(["list", os.path.join(root, "examples", "dam_break.toml")]) == 0
+    out = capsys.readouterr().out
+    assert "scene parameters" not in out and "  sph.rho0 " in out
+    assert cli.main(["list", "terminal_velocity"]) == 0
+    assert "  drag " in capsys.readouterr().out
 
 
 def test_a_run_shortened_below_the_files_frame_interval_writes_its_end(tmp_path, capsys):

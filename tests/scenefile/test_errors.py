@@ -49,6 +49,8 @@ def edit(text, old, new):
 BAD = [
     ("unknown key", lambda t: edit(t, "density = 1000.0", "densty = 1000.0"),
      ["[fluid]", "unknown key 'densty'", "allowed: density, viscosity"]),
+    ("gravity pointing up", lambda t: edit(t, "t_end = 0.01", "t_end = 0.01\ngravity = [0, 9.81]"),
+     ["[scene]", "key 'gravity' = [0.0, 9.81] points up", "[0, -9.81]"]),
     ("unknown table", lambda t: t + "\n[flud]\nx = 1\n",
      ["unknown table [flud]", "allowed:"]),
     ("wrong type", lambda t: edit(t, "dx = 0.01", 'dx = "fine"'),
