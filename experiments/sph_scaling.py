@@ -10,6 +10,7 @@ process:
 
     .venv/bin/python experiments/sph_scaling.py [--dx 0.0029 0.00145 0.00072 0.00051 0.00036]
                                                 [--steps 100] [--reps 5] [--t-from 0.05]
+                                                [--across]
 
 For each dx: the full-physics dam break (as bench_sph.py) at the derived step, a warm-up
 chunk (lists grown if they overflow), with ``--t-from`` further chunks until the flow
@@ -22,6 +23,10 @@ every size and a particle moves about the same fraction of h in a step (CFL h/(c
 |v|)), so the rebuilds a step nearly match (11–16 in 100 steps from 0.05 s, 6.9k to
 344k) and the cost per particle-step compares the step itself. The settings compute the same step (tests/solver/test_stages.py: equal to round-off). Writes
 experiments/results/sph_scaling.csv and sph_scaling.png.
+
+``--across`` times the default setting alone, the sizes' chunks interleaved (every size
+warmed up first, then one chunk of each in turn, ``--reps`` rounds), so a change of the
+machine's speed falls on all sizes alike: results/sph_scaling_across.csv.
 """
 from __future__ import annotations
 
@@ -52,15 +57,47 @@ def with_block(phys, pair_block, rebuild_block):
     return dataclasses.replace(phys, pair_block=pair_block, neighbors=nb)
 
 
-def row(dx, steps, reps, block, t_from=None):
+def warmed(dx, steps, t_from=None, phys_of=lambda ph: with_block(ph, 0, 0)):
+    """The dam break at ``dx``: its scene, a compiled ``steps``-long chunk and the state
+    after a warm-up chunk (lists grown), run on to ``t_from`` where given."""
     sc = cases.build("dam_break", dx=dx)
     phys, params = setup(sc)
     p = params.as_arrays(jnp.float32)
     st = solver.init_state(sc, phys, p)
-    phys, st, chunk, _ = compile_and_warm_up(with_block(phys, 0, 0), st, p, steps)
+    phys, st, chunk, _ = compile_and_warm_up(phys_of(phys), st, p, steps)
     while t_from is not None and float(st.t) < t_from:
         c = run_until_fits(chunk, phys, st, chunk.dt)
         phys, st = c.phys, c.end
+    return sc, phys, st, chunk
+
+
+def across_sizes(dxs, steps, reps, t_from):
+    """The default setting only, every size warmed up first and then one chunk of each size
+    in turn, ``reps`` rounds: a change of the machine's speed during the measurement falls
+    on every size alike, so the sizes compare with each other."""
+    runs = [warmed(dx, steps, t_from, lambda ph: ph) for dx in dxs]
+    walls = [[] for _ in runs]
+    ends = [None] * len(runs)
+    for _ in range(reps):
+        for k, (sc, phys, st, chunk) in enumerate(runs):
+            ends[k], wall = chunk(phys, st)
+            walls[k].append(wall)
+    rows = []
+    for (sc, phys, st, chunk), w, end, dx in zip(runs, walls, ends, dxs):
+        n = sc.fluid.n + sc.boundary.n
+        m = statistics.median(w) / steps
+        rows.append({"dx": dx, "n_particles": n, "t_from": float(st.t),
+                     "neighbour_capacity": int(st.nbrs.idx.shape[1]), "steps": steps,
+                     "rebuilds": int(end.status.rebuilds - st.status.rebuilds),
+                     "overflowed": bool(end.status.overflow),
+                     "ms_per_step": m * 1e3, "M_particle_steps_per_s": n / m / 1e6,
+                     "ns_per_particle_step": m / n * 1e9,
+                     "ns_min": min(w) / steps / n * 1e9, "ns_max": max(w) / steps / n * 1e9})
+    return rows
+
+
+def row(dx, steps, reps, block, t_from=None):
+    sc, phys, st, chunk = warmed(dx, steps, t_from)
     settings = {tag: with_block(phys, *f(block)) for tag, f in SETTINGS.items()}
     walls, ends = {b: [] for b in settings}, {}
     for ph in settings.values():            # compile each (untimed)
@@ -116,8 +153,26 @@ def main():
     ap.add_argument("--block", type=int, default=CPU_REBUILD_BLOCK)
     ap.add_argument("--t-from", type=float, default=None,
                     help="time every size from this simulated time [s]")
-    ap.add_argument("--out", default=os.path.join(HERE, "results", "sph_scaling.csv"))
+    ap.add_argument("--across", action="store_true",
+                    help="the default setting only, chunks of the sizes interleaved "
+                         "(writes sph_scaling_across.csv unless --out)")
+    ap.add_argument("--out", default=None)
     args = ap.parse_args()
+    name = "sph_scaling_across.csv" if args.across else "sph_scaling.csv"
+    args.out = args.out or os.path.join(HERE, "results", name)
+    if args.across:
+        rows = across_sizes(args.dx, args.steps, args.reps, args.t_from)
+        for r in rows:
+            print(f"N={r['n_particles']:7d} {r['M_particle_steps_per_s']:.2f} M p-steps/s "
+                  f"{r['ns_per_particle_step']:.0f} ns ({r['ns_min']:.0f}-{r['ns_max']:.0f}), "
+                  f"rebuilds {r['rebuilds']}/{args.steps}", flush=True)
+        ns = [r["ns_per_particle_step"] for r in rows]
+        print(f"spread (max/min - 1): {max(ns) / min(ns) - 1:.1%}")
+        with open(args.out, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+        return
     rows = []
     for dx in args.dx:
         r = row(dx, args.steps, args.reps, args.block, args.t_from)
