@@ -789,7 +789,8 @@ def fluid_momentum(phys: Physics, params: Params, state: State, fam: SphFamily, 
     """The fluid's acceleration and XSPH correction (sph.momentum_rate: W43, K34–K39) at the
     new level, the reaction of the fluid–structure pairs on the structure
     (:func:`structure_reaction`, fsi.py) and, with Physics.wall_force, on those boundary
-    rows (:func:`wall_force`).
+    rows (:func:`wall_force`). With the 'shared' pressure the reaction is the whole pair
+    force of the fluid particle's cell, the fluid's ε_F share and the grains' 1 − ε_F.
     Returns (state, the grains' part of the cells' pressure force per unit fluid mass with
     the 'shared' pressure, else None)."""
     fs, b, first = state.fsi, state.boundary, phys.n_fluid + phys.n_boundary
@@ -806,7 +807,7 @@ def fluid_momentum(phys: Physics, params: Params, state: State, fam: SphFamily, 
     shared = lvl.eps is not None and phys.fpi_pressure is FpiPressure.SHARED
     rho_all, p_all = _all(state, lvl.rho, "rho"), _all(state, lvl.p, "p")
 
-    def rate(pr, gravity):
+    def rate(pr, gravity, shared=shared):
         return sph.momentum_rate(phys, kernels.get(phys.kernel), params.sph, gravity, rho_all,
                                  p_all, pr, eps=eps_all, structure_bracket=bracket,
                                  shared=shared, h=fam.h, dt=params.dt)
@@ -815,7 +816,10 @@ def fluid_momentum(phys: Physics, params: Params, state: State, fam: SphFamily, 
     out = pair_pass(phys, fam, rho_c_all, lambda pr: rate(pr, jnp.asarray(params.gravity)),
                     table)
     acc, xs = out[:2]
-    no_gravity = lambda pr: rate(pr, jnp.zeros_like(acc[0]))[0]
+    # a wall or structure particle takes the whole pair force of the mixture's cell: with
+    # the 'shared' pressure the fluid keeps ε_F of it and the grains in the cell take the
+    # rest, and the wall pushes on both (Newton's third law over the three)
+    no_gravity = lambda pr: rate(pr, jnp.zeros_like(acc[0]), shared=False)[0]
     if fs is not None:
         with jax.named_scope("fsi.reaction"):
             fs = fs.replace(force=structure_reaction(phys, fam, table, no_gravity))

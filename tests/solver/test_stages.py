@@ -874,6 +874,29 @@ def test_wall_force_is_the_momentum_the_fluid_gives_the_walls():
 
 
 @x64
+def test_walls_beside_a_bed_take_the_grains_share_of_the_pressure_too():
+    """'shared' pressure, a packed bed on the floor between walls: each fluid–wall pair's
+    force on the cell goes ε_F to the fluid and 1 − ε_F to the grains, and the walls take
+    the whole of it back: Σ_F m_F (a_F − g + b_F) + Σ_B F_B = 0, b_F the grains' share per
+    unit fluid mass (without the grains' share the walls beside the bed read only the
+    fluid's, ε of the pore pressure's force)."""
+    scene = cases.build("grain_bed", t_end=0.01)
+    phys, p, st = init_x64(scene, fpi_pressure="shared", x64=True,
+                           wall_force=(0, scene.boundary.n))
+    fam = stages.sph_family(phys, st)
+    rho_c = stages._all(st, st.fpi.eps * st.fluid.rho, "rho")
+    lvl = stages.new_level(phys, p, st, fam, rho_c, 0.0)
+    out, share = stages.fluid_momentum(phys, p, st, fam, rho_c, lvl)
+    m = np.asarray(st.fluid.mass)[:, None]
+    cells = m * (np.asarray(out.fluid.acc) - np.asarray(p.gravity) + np.asarray(share))
+    walls = np.asarray(out.boundary.force)
+    fluid_alone = (m * (np.asarray(out.fluid.acc) - np.asarray(p.gravity))).sum(0)
+    assert abs(fluid_alone[1] + walls.sum(0)[1]) > 0.02 * abs(walls.sum(0)[1])  # it matters
+    np.testing.assert_allclose(cells.sum(0) + walls.sum(0), 0.0,
+                               atol=1e-10 * np.abs(cells).sum())
+
+
+@x64
 def test_wall_force_on_some_rows_equals_those_rows_of_all():
     """wall_force = (a, b) records rows a … b − 1 as the whole-boundary record has them
     and zero elsewhere; without the option the state holds no force."""
