@@ -56,6 +56,12 @@ def build(scene_name: str, overrides: dict, base: dict | None = None):
     return scene, apply(scene, rest, f"scene {scene_name!r}", keys, scene_name)
 
 
+#: a scene file's key -> the Params leaf it sets (what --set reaches)
+FILE_KEYS = {"friction": "dem.mu", "rolling_friction": "dem.mu_roll", "beta_n": "dem.beta_n",
+             "density": "sph.rho0", "viscosity": "sph.mu", "sound_speed": "sph.c0",
+             "g": "gravity"}
+
+
 def unknown_key(key: str, what: str, scene_keys, params, listing: str) -> ParameterError:
     """The one-line error for a ``--set`` key that nothing takes: the nearest keys it may
     have meant (:func:`difflib.get_close_matches`) and the command that lists them all."""
@@ -63,6 +69,9 @@ def unknown_key(key: str, what: str, scene_keys, params, listing: str) -> Parame
     known = dict.fromkeys([*scene_keys, "dt", *names, *(n.split(".")[-1] for n in names),
                            *Physics.OPTIONS])
     near = difflib.get_close_matches(key, list(known), n=3, cutoff=0.6)
+    leaf = FILE_KEYS.get(key)
+    if leaf is not None and leaf in names:
+        near = [leaf]
     hint = f"did you mean {' or '.join(map(repr, near))}? " if near else ""
     return ParameterError(f"unknown key {key!r} for {what}; {hint}`fpsi list {listing}` "
                           "lists the keys it takes")

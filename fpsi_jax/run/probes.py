@@ -106,7 +106,8 @@ def force(name: str, scene, idx, about=None) -> Probe:
     centroid), anticlockwise positive.
 
     On discs that move under their forces it is the fluid's force (Σ F_i of the FSI
-    coupling, W6.1), the hydrodynamic load on a structure. On discs that are all held
+    coupling, W6.1), the hydrodynamic load on a structure; on grains in the fluid, the
+    fluid's force on them, buoyancy and drag (W19, ``FpiState.force``), at their centres. On discs that are all held
     (clamped or kinematic: a support, a platen, a gate driven at a given speed) it is
     everything the rest of the model puts on them: the fluid's force where they are
     coupled to it, plus the free discs' contacts and the bonds to free discs
@@ -119,18 +120,22 @@ def force(name: str, scene, idx, about=None) -> Probe:
     held = bool(np.all(np.asarray(scene.solid.fixed, bool)[ii]))
     structure = scene.solid.structure_indices() if scene.fluid is not None else np.zeros(0)
     rows = np.flatnonzero(np.isin(structure, ii))
+    grains = (scene.solid.grain_indices() if scene.fluid is not None
+              and scene.options.get("fpi") else np.zeros(0))
+    grain_rows = np.flatnonzero(np.isin(grains, ii))
     if not held:
         if scene.fluid is None:
             raise ParameterError(f"probe {name!r}: a force probe on discs that move is the "
                                  "fluid's force on them, and the scene has no fluid; the "
                                  "discs' force on a fixed body is a force probe on held "
                                  "(clamped or kinematic) discs or on an obstacle")
-        if rows.size == 0:
+        if rows.size == 0 and grain_rows.size == 0:
             raise ParameterError(f"probe {name!r}: none of its discs is a fluid-coupled "
-                                 "structure disc")
+                                 "structure disc or a grain in the fluid")
     c = (np.asarray(scene.solid.x, float)[ii].mean(axis=0) if about is None
          else np.asarray(about, float))
     rr = jnp.asarray(rows, jnp.int32)
+    gr = jnp.asarray(grain_rows, jnp.int32)
     spec = {"discs": int(ii.size), "about": c.tolist()}
     if held:
         spec["held_discs"] = sorted(int(i) for i in ii)
@@ -139,11 +144,13 @@ def force(name: str, scene, idx, about=None) -> Probe:
         dtype = s.solid.x.dtype
         cc = jnp.asarray(c, dtype)
         out = jnp.zeros(3, dtype)
-        if rows.size:
-            f = s.fsi.force[rr]
-            x = s.solid.x[s.fsi.idx[rr]] - cc
-            m = jnp.sum(x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0])
-            out = jnp.concatenate([jnp.sum(f, axis=0), m[None]])
+        for part, r in (("fsi", rr), ("fpi", gr)):
+            if r.size:                       # the fluid's force, at the discs' centres
+                coupled = getattr(s, part)
+                f = coupled.force[r]
+                x = s.solid.x[coupled.idx[r]] - cc
+                m = jnp.sum(x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0])
+                out = out + jnp.concatenate([jnp.sum(f, axis=0), m[None]])
         if held:
             if s.solid.reaction is None:
                 raise ParameterError(f"probe {name!r} reads held discs' reactions: run with "

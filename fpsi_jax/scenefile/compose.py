@@ -532,6 +532,10 @@ def compose(spec: dict, path: str) -> SceneFile:
     # fixed SPH particles and DEM walls
     has_discs = solid is not None
     tank = spec.get("tank")
+    if (tank is None and fluid is not None and not spec.get("obstacle")
+            and not any(t in ("structure", "kinematic") for t, _, _, _ in groups)):
+        fail(path, "fluid", "the water has nothing to hold it: no [tank], no [[obstacle]] "
+             "and no structure or kinematic body; add a [tank] (width, height)")
     xb_parts, dx_parts, wall_a, wall_b, wall_side = [], [], [], [], []
     pad = 0.0
     hb = None
@@ -776,7 +780,7 @@ def _bodies_inside(path, tank, groups):
                  f"{_tank_span(tank)}", item, i)
 
 
-def _probe_inside_domain(path, pr, i, scene):
+def _probe_inside_domain(path, pr, i, scene, spec):
     """Refuse a probe's point, x or x range outside the scene's domain (it would read
     nothing all run: a point typed in mm, say)."""
     lo, hi = np.asarray(scene.domain_lo, float), np.asarray(scene.domain_hi, float)
@@ -789,7 +793,10 @@ def _probe_inside_domain(path, pr, i, scene):
         pts = vals.reshape(-1, len(axes)) if key == "point" else vals[:, None]
         out = any(not (lo[a] <= p[k] <= hi[a]) for p in pts for k, a in enumerate(axes))
         if out:
-            fail(path, "probe", f"key {key!r} = {v!r} lies outside the domain ({span})",
+            why = ("" if spec.get("tank") is not None or spec["scene"]["domain"] is not None
+                   else "; the scene has no [tank], so the domain is its bodies' bounding "
+                   "box: add a [tank] (or [scene] domain)")
+            fail(path, "probe", f"key {key!r} = {v!r} lies outside the domain ({span}){why}",
                  pr, i)
 
 
@@ -811,7 +818,7 @@ def _probes(path, spec, scene, bodies, obstacles=None):
             if pr["region"] is not None:
                 fail(path, "probe", "key 'region' selects discs; a force probe on an "
                      "obstacle sums all its particles", pr, i)
-            _probe_inside_domain(path, pr, i, scene)
+            _probe_inside_domain(path, pr, i, scene, spec)
             rows, walls = obstacles[pr["body"]]
             probes.append(P.obstacle_force(name, scene, rows, pr["about"], walls))
             _reference(path, folder, pr, i, probes[-1], refs)
@@ -837,7 +844,7 @@ def _probes(path, spec, scene, bodies, obstacles=None):
                 fail(path, "probe", f"key {key!r} is required for kind {kind!r}", pr, i)
             return pr[key]
 
-        _probe_inside_domain(path, pr, i, scene)
+        _probe_inside_domain(path, pr, i, scene, spec)
 
         try:
             if kind == "displacement":

@@ -383,7 +383,8 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
       Key("body", "str", "", None, "name of a structure, grains, discs or kinematic group "
           "(displacement, force, bed_profile, broken_bonds), or of an obstacle (force: "
           "the water's force on its boundary particles and the discs' on its DEM walls). "
-          "force on discs that move: the fluid's force; on discs that are all held (a "
+          "force on discs that move: the fluid's force (on grains: buoyancy and drag, at "
+          "their centres; their contacts are not in it); on discs that are all held (a "
           "kinematic group, or a `region` inside a structure's clamp): the fluid's force "
           "plus the free discs' contacts and the bonds to them, the support's load. A "
           "force is the one on the body, per metre of thickness: water pushing it toward "
@@ -400,7 +401,9 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
           "ends' without fluid)"),
       Key("x", "float", "m", None, "water_level: where (the highest particle within one "
           "spacing of x)"),
-      Key("direction", "str", "", "+x", "front: which way", choices=("+x", "-x")),
+      Key("direction", "str", "", "+x", "front: which way; it reads the x of the farthest "
+          "fluid particle that way, so with water already downstream (a tailwater) it reads "
+          "that water's end from the start", choices=("+x", "-x")),
       Key("x_range", "range", "m", None, "bed_profile: from x0 to x1"),
       Key("bins", "int", "", 10, "bed_profile: columns of equal width between x0 and x1 "
           "(components z0, z1, …: column k centred at x0 + (k + ½)(x1 − x0)/bins); each reads "

@@ -49,6 +49,8 @@ def edit(text, old, new):
 BAD = [
     ("unknown key", lambda t: edit(t, "density = 1000.0", "densty = 1000.0"),
      ["[fluid]", "unknown key 'densty'", "allowed: density, viscosity"]),
+    ("water without a tank", lambda t: t.split("[tank]")[0],
+     ["[fluid]", "the water has nothing to hold it", "add a [tank]"]),
     ("gravity pointing up", lambda t: edit(t, "t_end = 0.01", "t_end = 0.01\ngravity = [0, 9.81]"),
      ["[scene]", "key 'gravity' = [0.0, 9.81] points up", "[0, -9.81]"]),
     ("unknown table", lambda t: t + "\n[flud]\nx = 1\n",
