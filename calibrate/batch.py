@@ -7,7 +7,7 @@
 
 The neighbour lists are shared: every member of the batch runs with the capacity the
 problem was allocated with, and a member that overflows is reported (its loss is NaN),
-never silently truncated (architecture.md: batched runs need a shared worst-case
+never silently truncated (one compiled program for the batch needs one worst-case
 capacity).
 """
 from __future__ import annotations

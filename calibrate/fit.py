@@ -1,10 +1,12 @@
-"""The calibration loop: an optax optimiser on the unconstrained z of a
-:class:`~calibrate.space.ParamSpace`, gradients by reverse mode through the checkpointed
-rollout, early stopping, Gauss–Newton standard errors, a JSON record and a plot.
+"""The calibration loop on the unconstrained z of a :class:`~calibrate.space.ParamSpace`:
+Levenberg–Marquardt on the residuals (the default; the Jacobian by forward mode through
+the rollout, or by secants where a chaotic run's derivative misleads), or an optax
+optimiser on the loss with the gradient by reverse mode through the checkpointed rollout;
+early stopping, Gauss–Newton standard errors, a JSON record and a plot.
 
     cal = Calibration(problem, space, [target, ...])
     res = fit(cal, max_steps=100)
-    res.save("results/fit.json"); res.plot("results/fit.png")
+    res.save("results/fit.json"); plot_fit(cal, res, "results/fit.png")
 """
 from __future__ import annotations
 

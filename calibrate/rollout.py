@@ -1,4 +1,4 @@
-"""Differentiable rollouts with bounded memory (architecture.md §Rollouts and gradients).
+"""Differentiable rollouts with bounded memory (docs/design.md, *Gradients and calibration*).
 
 A :class:`Problem` is a scene made ready for gradients: the static ``Physics`` (time step
 and DEM sub-steps fixed, so every parameter set in a fit runs the same compiled program),

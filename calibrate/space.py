@@ -6,8 +6,8 @@ A :class:`Fitted` quantity is either one leaf of ``Params`` addressed by its dot
 ``dem.kn``, ``dem.ks``, which is the same as scaling Young's modulus E in either
 published mapping, since both are linear in E).
 
-The optimiser works on an unconstrained vector z (architecture.md §Static vs
-differentiable): a positive quantity is optimised in log space, a bounded one through a
+The optimiser works on an unconstrained vector z (docs/design.md, *Static,
+differentiable, state*): a positive quantity is optimised in log space, a bounded one through a
 logistic map onto its bounds (in log space if it is positive),
 
     v = exp z                                        positive, no bounds

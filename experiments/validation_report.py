@@ -49,10 +49,13 @@ def passed(record) -> bool:
 def signed_error(record):
     """The record's relative error with its sign: some cases store |error|; where
     (value − reference)/reference has the same magnitude, that signed figure is shown.
-    Norms (L1, RMS) and errors against a zero reference are shown as recorded."""
+    Against a zero reference the error is the value itself, with its sign (a load −0.84 %
+    short reads −0.84 %); norms (L1, RMS) are shown as recorded."""
     rel, v, ref = record.get("rel_error"), record.get("value"), record.get("reference")
     if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (rel, v, ref)):
         return rel
+    if ref == 0 and math.isfinite(v) and abs(abs(v) - abs(rel)) <= 1e-9 * max(1e-12, abs(v)):
+        return v
     if ref == 0 or not math.isfinite(v) or not math.isfinite(ref):
         return rel
     s = (v - ref) / ref

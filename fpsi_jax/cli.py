@@ -284,7 +284,7 @@ def make_parser():
     r.add_argument("--dt", type=float, default=None, help="time step (default: the bound)")
     r.add_argument("--unsafe-dt", action="store_true",
                    help="accept a --dt above the derived bound (experiments/stability.py "
-                        "found the cases stable to 4-6x it; a run that blows up still stops "
+                        "found the cases stable to 1.5-2.9x it; a run that blows up still stops "
                         "with the diagnosis)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override a scene parameter (registered scenes), a Params leaf or a "

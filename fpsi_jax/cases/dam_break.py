@@ -1,4 +1,4 @@
-"""Dam break (Koshizuka & Oka 1996 geometry; seed 001 §6.2 parameters): the scene, the
+"""Dam break (Koshizuka & Oka 1996 geometry; K §6.2 parameters): the scene, the
 surge front Z(T) against the experiment, and its plot."""
 from __future__ import annotations
 

@@ -68,7 +68,7 @@ def elastic_gate(*, water_width=0.1, water_height=0.14, gate_length=0.079,
     E/(1−ν²) if ``plane_strain``. Damping: local ``alpha`` (DEM K25) and viscous
     ``damping`` c [1/s] (DemParams.damping, what the calibration fits).
     Resolution [m]: fluid spacing ``dx``, disc diameter ``d``, boundary spacing
-    ``dx_boundary``, smoothing length ``h0``; the defaults are seed 001 Table 5's (1.75,
+    ``dx_boundary``, smoothing length ``h0``; the defaults are K Table 5's (1.75,
     1.25, 1.25, 2.1875 mm), :data:`GATE_COARSE` the coarse set. Numerics: FSI
     ``coupling``, c0 (default 10 √(2 g H)), δ-SPH ``delta``, artificial viscosity
     ``alpha_av`` (0.02, as in the dam break), ``r_clump``, ``eps_xsph``; ``t_end`` [s].
@@ -143,7 +143,7 @@ def elastic_gate(*, water_width=0.1, water_height=0.14, gate_length=0.079,
 
 gate_failure = variant(
     elastic_gate, "gate_failure",
-    """The elastic gate with bonds weak enough to break (seed 000 §6.3 in spirit): the
+    """The elastic gate with bonds weak enough to break (W §6.3 in spirit): the
     hydrostatic bending stress at the clamp is about 6M/e² ≈ 0.8 MPa (M ≈ ρg(HL²/2 − L³/6)),
     so σ̄_c = τ̄_c = 0.2 MPa lets the gate crack at the clamp soon after release and be
     carried off by the flow. Every other keyword as :func:`elastic_gate`.""",

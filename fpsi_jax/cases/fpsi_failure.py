@@ -1,4 +1,4 @@
-"""Three phases with a breaking structure (W6.3; seed 000 §6.3): the two-phase dam break
+"""Three phases with a breaking structure (W6.3): the two-phase dam break
 with its gate replaced by a bonded wall fixed at its foot."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The two-phase dam break of Sun, Sakai & Yamada (2013) (W6.2.2; seed 000 §6.2): a water
+"""The two-phase dam break of Sun, Sakai & Yamada (2013) (W6.2.2): a water
 column with a bed of grains at its foot released by a lifting gate. Its water, bed and
 tank (:func:`two_phase_parts`) are also those of ``fpsi_failure``."""
 from __future__ import annotations

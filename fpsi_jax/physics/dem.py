@@ -14,7 +14,7 @@ Conventions for a pair A–B (A the row particle ``i``, B its neighbour ``j`` or
 m is the reduced mass m_A m_B/(m_A + m_B) (a disc's own mass against a wall or a clamped
 disc). The dashpot force is not clamped: the normal force may pull briefly at the end of a
 damped contact, which ends when δ returns to 0, so the restitution coefficient is exactly
-exp(−πβ/√(1−β²)) and the contact time π/√(k/m (1−β²)) (tests/test_dem.py).
+exp(−πβ/√(1−β²)) and the contact time π/√(k/m (1−β²)) (tests/physics/test_dem.py).
 
 The shear force is contact history: it is stored per (row particle, neighbour slot) of the
 Dense contact list and re-addressed by the *pair* (i, j) whenever the list changes

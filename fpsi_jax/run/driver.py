@@ -3,7 +3,7 @@ progress bar and output.
 
     result = simulate(scene, t_end=0.4, output="results/run.h5", every=0.01)
 
-Between chunks the driver reads the chunk's :class:`~fpsi_jax.state.Status`:
+Between chunks the driver reads the chunk's :class:`~fpsi_jax.model.state.Status`:
 
 * neighbour overflow (or a smoothing length outgrowing the cut-off): the list is reallocated
   with more room from the state at the start of the chunk and the chunk is redone, so no

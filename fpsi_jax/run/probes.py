@@ -5,7 +5,7 @@ units. ``simulate(scene, probes=[...])`` records each one after every step (not 
 output frames), returns them in ``Result.probes`` (name → (n_steps, k) array), writes
 them to the HDF5 file under ``/probes/<name>`` and to ``<output>_probes.csv``.
 
-    tip = probes.displacement("tip", idx)              # mean displacement of discs idx
+    tip = probes.displacement("tip", scene, idx)       # mean displacement of discs idx
     res = simulate(scene, probes=[tip, probes.front("front", scene)])
     res.probes["tip"][:, 0]                            # u_x after every step [m]
 
