@@ -259,6 +259,22 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
+def seconds(text: str) -> float:
+    """A time on the command line: seconds as a number, or with a unit as a scene file takes
+    it ("0.5 ms", "2 s")."""
+    from .scenefile.reader import QUANTITY_UNITS, split_quantity
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    parts = split_quantity(text)
+    unit = QUANTITY_UNITS.get(parts[1]) if parts is not None else None
+    if unit is None or unit[0] != "s":
+        raise argparse.ArgumentTypeError(f"{text!r} is not a time: seconds as a number "
+                                         "(0.0005) or with a unit ('0.5 ms')")
+    return parts[0] * unit[1]
+
+
 def make_parser():
     p = _Parser(prog="fpsi", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -274,14 +290,15 @@ def make_parser():
     r.add_argument("scene", nargs="?", default=None,
                    help="a registered scene (fpsi list) or a scene file "
                    "(my_case.toml; docs/scene-file.md); omitted with --resume")
-    r.add_argument("--t-end", type=float, default=None, help="physical time [s]")
+    r.add_argument("--t-end", type=seconds, default=None, help="physical time [s] (or "
+                   "with a unit: '500 ms')")
     r.add_argument("--out", default=None, help="HDF5 output path, .h5 (.xdmf written beside)")
     r.add_argument("--overwrite", action="store_true",
                    help="replace an existing output file (only one fpsi-jax wrote)")
     r.add_argument("--resume", default=None, metavar="FILE",
                    help="continue a stopped run from the last complete frame of its file")
-    r.add_argument("--every", type=float, default=None, help="seconds between frames")
-    r.add_argument("--dt", type=float, default=None, help="time step (default: the bound)")
+    r.add_argument("--every", type=seconds, default=None, help="seconds between frames")
+    r.add_argument("--dt", type=seconds, default=None, help="time step (default: the bound)")
     r.add_argument("--unsafe-dt", action="store_true",
                    help="accept a --dt above the derived bound (experiments/stability.py "
                         "found the cases stable to 1.5-2.9x it; a run that blows up still stops "

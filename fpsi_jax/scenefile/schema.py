@@ -95,7 +95,9 @@ table("fluid", False, "The (single) SPH fluid: material, resolution and numerics
       _pos("h", "m", None, "smoothing length (default 1.25 dx). For waves give 2 dx and "
            "no `alpha`: at 1.25 dx a standing wave kept 0.22 of its height after four "
            "periods and a piston's waves came out 15–20 % low; at 2 dx without α all of "
-           "it and −0.3 % (physics.md, *Waves*)"),
+           "it and −0.3 % (physics.md, *Waves*). For a grain bed under water give 2 dx as "
+           "well: at 1.25 dx the water over a bed at rest kept moving at 5–6 % of √(gH), "
+           "at 2 dx below 1 % (physics.md, *Packed beds*)"),
       _pos("sound_speed", "m/s", None, "numerical sound speed c0 (default: "
            "`sound_speed_factor` × v_max)"),
       _pos("sound_speed_factor", "", 10.0, "c0 = factor × v_max when sound_speed is not "
@@ -206,7 +208,13 @@ table("structure", True, "A bonded body: discs glued by parallel bonds between t
 
 table("grains", True, "Free grains (discs of density ρ, mass ρπR²t): a packed bed that "
       "feels the fluid through voidage, buoyancy and drag. Give `box`, `polygon` or "
-      "`points`.",
+      "`points`. A bed under still water runs at its own voidage, and so did a bed "
+      "flushed from under a gate (with `wall_images = false`); water running onto a dry bed, or a column standing out of the water, "
+      "goes unstable where the first water enters the pores (after 0.2–0.3 s in the "
+      "cases measured; physics.md, *Packed beds*). Such a scene runs with `[physics] "
+      "voidage = \"mapped\"` and `eps_floor = 0.8`, the seeds' set-up, at a cost: the "
+      "pores hold about three times the water they should and the grains take 0.82 of "
+      "their buoyancy (physics.md, *Which voidage a 2D bed has*).",
       *_DISC_COMMON,
       Key("n", "int", "", None, "keep only the first n discs of the packing (rows from the "
           "bottom)", lo=1),
@@ -258,7 +266,9 @@ table("contacts", False, "DEM contact law (W10–W17, K25). kn and ks default to
       "compression too; such a load is better given as a `load`, or by moving the "
       "structure's own end rows (`move`; a force probe on them reads the load: a "
       "square lattice of E 10 MPa squeezed so read 10.0 MPa).",
-      _pos("kn", "N/m", None, "normal contact stiffness per unit thickness"),
+      _pos("kn", "N/m", None, "normal contact stiffness: the force per metre of overlap "
+           "on a disc of unit thickness, as PFC2D's kn (a 3D code's sphere stiffness in "
+           "N/m is not it: divide by the depth the disc stands for)"),
       Key("ks", "float", "N/m", None, "shear contact stiffness (default ½ kn, or the "
           "material's)", lo=0.0),
       Key("friction", "float", "", 0.3, "Coulomb friction coefficient μ", lo=0.0),
@@ -325,9 +335,11 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
           "voidage 'mapped' and eps_floor 0.8, the seeds' set-up, whose pore fluid is "
           "heavier than its pores hold: docs/physics.md, Packed beds)", lo=0.0,
           hi=1.0, hi_open=True),
-      Key("wall_images", "bool", "", True, "the grains' mirror images in the DEM walls count "
-          "in the voidage (the part of a grain's kernel inside a wall goes back to the "
-          "fluid's side: a bed at rest loads the floor right); false makes the pores by the "
+      Key("wall_images", "bool", "", True, "the grains' mirror images in the tank's DEM walls "
+          "count in the voidage (the part of a grain's kernel inside a wall goes back to the "
+          "fluid's side: a bed at rest loads the floor right; an obstacle's outline acts on "
+          "both sides and gives none, so a bed resting on an obstacle is buoyed about 7 % "
+          "short, as a bed on the floor without images); false makes the pores by the "
           "floor less tight, which let the flush of examples/sediment_flushing.toml run; "
           "water running onto a dry bed can go unstable either way and runs floored "
           "(voidage 'mapped', eps_floor 0.8: docs/physics.md, Packed beds)"),

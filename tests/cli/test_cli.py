@@ -45,6 +45,17 @@ def test_bad_input_exits_2_with_one_line(argv, word, tmp_path, capsys):
     assert not out.exists()
 
 
+def test_times_on_the_command_line_may_carry_a_unit(capsys):
+    """--t-end, --every and --dt take seconds, or a time as a scene file writes it."""
+    args = cli.make_parser().parse_args(["run", "x.toml", "--t-end", "0.5 ms", "--every",
+                                         "100ms", "--dt", "2e-5"])
+    assert (args.t_end, args.every, args.dt) == (pytest.approx(5e-4), pytest.approx(0.1), 2e-5)
+    with pytest.raises(SystemExit) as e:
+        cli.make_parser().parse_args(["run", "x.toml", "--t-end", "0.5 kg"])
+    assert e.value.code == 2
+    assert "'0.5 kg' is not a time" in capsys.readouterr().err
+
+
 def test_list_names_the_keys_set_takes_with_their_values(capsys):
     """``fpsi list SCENE``: the builder's keywords with their defaults, the Params leaves
     and the Physics options with the scene's values (a scene file: no builder keywords);
