@@ -286,20 +286,42 @@ def water_level(name: str, scene, x: float, floor: float = 0.0) -> Probe:
                                                                "floor": float(floor)})
 
 
-def front(name: str, scene, direction: str = "+x") -> Probe:
-    """The fluid's leading edge along +x (max x + Δp/2) or −x (min x − Δp/2)."""
-    _need(scene, "fluid", name)
+def front(name: str, scene, direction: str = "+x", idx=None, above=None) -> Probe:
+    """The leading edge along +x or −x: of the fluid (max x + Δp/2, or min x − Δp/2), or
+    of the discs ``idx`` (max x + R: how far grains were carried). ``above``: only what
+    lies higher than this y counts (a bore running over still tailwater: the farthest
+    water above the tailwater's level). 0 while nothing counts."""
     if direction not in ("+x", "-x"):
         raise ParameterError(f"probe {name!r}: direction = {direction!r}; allowed '+x', '-x'")
-    half = 0.5 * float(scene.params.sph.dp)
     sign = 1.0 if direction == "+x" else -1.0
+    if idx is None:
+        _need(scene, "fluid", name)
+        half = 0.5 * float(scene.params.sph.dp)
+        ii = None
+    else:
+        _need(scene, "solid", name)
+        ii = jnp.asarray(_indices(idx, scene.solid.n, f"probe {name!r}"))
 
-    def fn(s):     # every particle gone: 0
-        inside = observers.in_computation(s.fluid)
-        edge = jnp.max(jnp.where(inside, sign * s.fluid.x[:, 0], -jnp.inf))
-        return jnp.where(jnp.any(inside), sign * edge + sign * half, 0.0)
+    def fn(s):
+        if ii is None:
+            block, reach = s.fluid, half
+        else:
+            block, reach = s.solid, s.solid.radius[ii]
+        x = block.x if ii is None else block.x[ii]
+        inside = observers.in_computation(block)
+        if ii is not None:
+            inside = inside[ii]
+        if above is not None:
+            inside = inside & (x[:, 1] > above)
+        edge = jnp.max(jnp.where(inside, sign * x[:, 0] + reach, -jnp.inf))
+        return jnp.where(jnp.any(inside), sign * edge, 0.0)
 
-    return Probe(name, "front", fn, ("x",), ("m",), {"direction": direction})
+    spec = {"direction": direction}
+    if idx is not None:
+        spec["discs"] = int(ii.size)
+    if above is not None:
+        spec["above"] = float(above)
+    return Probe(name, "front", fn, ("x",), ("m",), spec)
 
 
 def bed_profile(name: str, scene, idx, x0: float, x1: float, bins: int,

@@ -859,7 +859,7 @@ def _probes(path, spec, scene, bodies, obstacles=None):
             elif kind == "water_level":
                 p = P.water_level(name, scene, need("x"), pr["floor"])
             elif kind == "front":
-                p = P.front(name, scene, pr["direction"])
+                p = P.front(name, scene, pr["direction"], idx, pr["above"])
             elif kind == "bed_profile":
                 need("body")
                 x0, x1 = need("x_range")

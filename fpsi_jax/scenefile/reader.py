@@ -243,12 +243,13 @@ def convert(key, v):
 #: the probe kinds each optional [[probe]] key applies to (a key given to another kind
 #: would be silently ignored: refused instead)
 PROBE_KEY_KINDS = {
-    "body": ("displacement", "force", "bed_profile", "broken_bonds"),
-    "region": ("displacement", "force", "bed_profile", "broken_bonds"),
+    "body": ("displacement", "force", "bed_profile", "broken_bonds", "front"),
+    "region": ("displacement", "force", "bed_profile", "broken_bonds", "front"),
     "point": ("pressure", "displacement"),
     "about": ("force",),
     "x": ("water_level",),
     "direction": ("front",),
+    "above": ("front",),
     "x_range": ("bed_profile",),
     "bins": ("bed_profile",),
     "floor": ("water_level", "bed_profile"),

@@ -393,7 +393,7 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
           "displacement", "force", "pressure", "water_level", "front", "bed_profile",
           "broken_bonds")),
       Key("body", "str", "", None, "name of a structure, grains, discs or kinematic group "
-          "(displacement, force, bed_profile, broken_bonds), or of an obstacle (force: "
+          "(displacement, force, bed_profile, broken_bonds, front), or of an obstacle (force: "
           "the water's force on its boundary particles and the discs' on its DEM walls). "
           "force on discs that move: the fluid's force (on grains: buoyancy and drag, at "
           "their centres; their contacts are not in it); on discs that are all held (a "
@@ -414,8 +414,11 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
       Key("x", "float", "m", None, "water_level: where (the highest particle within one "
           "spacing of x)"),
       Key("direction", "str", "", "+x", "front: which way; it reads the x of the farthest "
-          "fluid particle that way, so with water already downstream (a tailwater) it reads "
-          "that water's end from the start", choices=("+x", "-x")),
+          "fluid particle that way (with a `body`, the farthest disc edge of it: how far "
+          "grains were carried), so with water already downstream (a tailwater) it reads "
+          "that water's end unless `above` is given", choices=("+x", "-x")),
+      Key("above", "float", "m", None, "front: only water (or discs) higher than this y count: a "
+           "bore over still tailwater is the farthest water above the tailwater's level"),
       Key("x_range", "range", "m", None, "bed_profile: from x0 to x1"),
       Key("bins", "int", "", 10, "bed_profile: columns of equal width between x0 and x1 "
           "(components z0, z1, …: column k centred at x0 + (k + ½)(x1 − x0)/bins); each reads "

@@ -80,6 +80,10 @@ def test_force_on_grains_is_the_fluids_force_on_them(tmp_path):
     buoyancy = 1000.0 * 9.81 * float(np.sum(np.pi * np.asarray(sf.scene.solid.radius)[g] ** 2))
     assert f[1] == pytest.approx(buoyancy, rel=0.15)
     assert abs(f[0]) < 0.02 * buoyancy
+    # a front probe on the same grains: their farthest edge, from the file's keys
+    x, r = np.asarray(res.state.solid.x)[g], np.asarray(res.state.solid.radius)[g]
+    assert res.probes["reach"][-1, 0] == pytest.approx(float(np.max(x[:, 0] + r)), abs=1e-6)
+    assert res.probes["top"][-1, 0] == 0.0                # no grain above 5 cm
 
 
 GRAIN_BED = """
@@ -105,6 +109,15 @@ friction = 0.5
 name = "lift"
 kind = "force"
 body = "bed"
+[[probe]]
+name = "reach"
+kind = "front"
+body = "bed"
+[[probe]]
+name = "top"
+kind = "front"
+body = "bed"
+above = 0.05
 """
 
 
@@ -390,6 +403,23 @@ def test_water_level_front_and_dry_floor():
     assert float(P.water_level("h", sc, 0.3, floor=-1.0)(s)[0]) == -1.0
     assert float(P.front("f", sc)(s)[0]) == pytest.approx(0.1)
     assert float(P.front("f", sc, "-x")(s)[0]) == pytest.approx(0.0)
+
+
+def test_front_above_a_level_and_of_discs():
+    """``above``: only water higher than it counts (a bore over tailwater); with discs the
+    farthest disc edge, max x + R, of the selected ones."""
+    sc = scene(solid=False)
+    x = np.asarray(sc.fluid.x, float).copy()
+    low = x[:, 1] < 0.02
+    x[low, 0] += 0.3                       # a thin sheet of 'tailwater' far downstream
+    s = NS(fluid=NS(x=jnp.asarray(x)))
+    assert float(P.front("f", sc)(s)[0]) == pytest.approx(0.4)
+    assert float(P.front("f", sc, above=0.02)(s)[0]) == pytest.approx(0.1)
+    assert float(P.front("f", sc, above=1.0)(s)[0]) == 0.0          # nothing counts
+    sd = scene(fluid=False)
+    d = solid_state(sd.solid.x)
+    assert float(P.front("g", sd, idx=[0, 1, 2])(d)[0]) == pytest.approx(0.225)
+    assert float(P.front("g", sd, "-x", idx=[1, 3])(d)[0]) == pytest.approx(0.205)
 
 
 def test_water_level_between_two_columns_keeps_still_water_level_as_they_jitter():
