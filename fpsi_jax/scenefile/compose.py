@@ -562,6 +562,9 @@ def compose(spec: dict, path: str) -> SceneFile:
             wall_b.append(w.b)
             wall_side.append(w.sides())         # the tank's walls act on the inside
     obstacles = {}             # name -> (its boundary rows (a, b), its DEM walls (a, b))
+    if wall_a and has_discs:   # the tank's walls (box_walls' order): the discs' load on each
+        obstacles.update({f"tank.{side}": (None, (k, k + 1))
+                          for k, side in enumerate(("floor", "left", "right"))})
     for i, ob in enumerate(spec.get("obstacle", [])):
         how = _shape(path, "obstacle", ob, i, ("box", "polygon", "polyline"))
         if ob["name"] is not None and (ob["name"] in names or ob["name"] in obstacles):

@@ -394,7 +394,10 @@ table("probe", True, "A measurement recorded after every step (fpsi_jax.run.prob
           "broken_bonds")),
       Key("body", "str", "", None, "name of a structure, grains, discs or kinematic group "
           "(displacement, force, bed_profile, broken_bonds, front), or of an obstacle (force: "
-          "the water's force on its boundary particles and the discs' on its DEM walls). "
+          "the water's force on its boundary particles and the discs' on its DEM walls), or "
+          "`tank.floor`, `tank.left`, `tank.right` (force: the discs' contact load on that "
+          "wall of the tank, a bed's effective weight on the floor; the water's is not in "
+          "it, a pressure probe reads that). "
           "force on discs that move: the fluid's force (on grains: buoyancy and drag, at "
           "their centres; their contacts are not in it); on discs that are all held (a "
           "kinematic group, or a `region` inside a structure's clamp): the fluid's force "

@@ -203,6 +203,23 @@ def test_force_on_an_obstacle_is_the_weight_of_the_stones_resting_on_it(tmp_path
                                rtol=1e-4, atol=1e-5 * mg)
 
 
+def test_force_on_the_tanks_floor_is_the_weight_of_the_stones_on_it(tmp_path):
+    """The same stones dropped on the tank's floor beside the block: `tank.floor` reads
+    their weight through the floor's DEM wall; the block and the side walls carry none."""
+    from fpsi_jax import scenefile
+    path = tmp_path / "stones.toml"
+    text = STONES.replace("[[0.12, 0.055], [0.17, 0.06]]", "[[0.03, 0.0051], [0.25, 0.0052]]")
+    path.write_text(text + '[[probe]]\nname = "floor"\nkind = "force"\nbody = "tank.floor"\n'
+                    '[[probe]]\nname = "left"\nkind = "force"\nbody = "tank.left"\n')
+    sf = scenefile.load(str(path))
+    assert [p.spec["dem_walls"] for p in sf.probes] == [[3, 7], [0, 1], [1, 2]]
+    res = simulate(sf.scene, probes=sf.probes, progress=False)
+    mg = 2700.0 * np.pi * 0.005 ** 2 * 9.81
+    np.testing.assert_allclose(res.probes["floor"][-1, :2], [0.0, -2 * mg], atol=1e-4 * mg)
+    np.testing.assert_allclose(res.probes["load"][-1, :2], 0.0, atol=1e-6)
+    np.testing.assert_allclose(res.probes["left"][-1, :2], 0.0, atol=1e-6)
+
+
 KINEMATIC_BLOCK = STONES.replace("""[[obstacle]]
 name = "block"
 box = [0.1, 0.0, 0.2, 0.05]""", """[[kinematic]]
