@@ -86,7 +86,7 @@ def fluid_among_grains(fluid, x_grain, r_grain, voidage, eps_floor=0.0, walls=No
     holds (ε the voidage the grains leave them, W2, at least ``eps_floor``), so the start is
     at rest. ``walls``: the scene's DEM walls (a WallBlock) when the step counts the grains'
     wall images in the voidage (Physics.wall_images, fpi.wall_images)."""
-    w = None if walls is None else (walls.a, walls.b, walls.sides())
+    w = None if walls is None else (walls.a, walls.b, walls.image_sides())
     eps = in_float64(fpi.voidage_at, kernels.get("wendland"), fluid.x, fluid.h, x_grain,
                      np.pi * np.asarray(r_grain) ** 2, voidage, w)
     eps = np.maximum(eps, eps_floor)

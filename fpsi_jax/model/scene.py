@@ -143,17 +143,29 @@ class WallBlock:
     side: +1 the left of a → b (the normal (−t_y, t_x), t along a → b), −1 the right, 0 both
     (a thin plate). A disc whose centre has gone past a one-sided wall's line (a contact
     spring too soft for the impact) is still pushed back out, with overlap R + depth, while
-    the depth is under 2R; None: every wall two-sided."""
+    the depth is under 2R; None: every wall two-sided.
+
+    ``image_side`` (w,), where given, says on which side of each wall the fluid lies for
+    the grains' wall images (fpi.wall_images; 0: none), where that differs from ``side``:
+    an obstacle's outline pushes discs from both sides but has water only outside."""
 
     a: np.ndarray
     b: np.ndarray
     side: np.ndarray | None = None
+    image_side: np.ndarray | None = None
 
     def sides(self) -> np.ndarray:
         """(w,) the active sides (0 where ``side`` is None)."""
         if self.side is None:
             return np.zeros(self.n)
         return np.broadcast_to(np.asarray(self.side, float), (self.n,)).copy()
+
+    def image_sides(self) -> np.ndarray:
+        """(w,) the fluid's side of each wall for the grains' images (``image_side``, else
+        the active sides)."""
+        if self.image_side is None:
+            return self.sides()
+        return np.broadcast_to(np.asarray(self.image_side, float), (self.n,)).copy()
 
     @property
     def n(self) -> int:

@@ -111,7 +111,8 @@ class BondState:
 @pytree_dataclass
 class WallState:
     """DEM line-segment walls a[k] → b[k] (fixed) and their active sides (w,): +1 the left
-    of a → b, −1 the right, 0 both (scene.WallBlock). ``near`` (c,) int32: the free discs
+    of a → b, −1 the right, 0 both (scene.WallBlock); ``image_side`` (w,) the fluid's side
+    for the grains' wall images (WallBlock.image_sides; None: ``side``). ``near`` (c,) int32: the free discs
     that may touch a wall until the DEM list is next rebuilt (physics.dem.walls_near at
     the list's build positions), padded with n_solid; ``n_near`` (int32 scalar) how many
     there are. The sub-steps evaluate the wall contacts of those discs only, of none
@@ -124,6 +125,7 @@ class WallState:
     a: Any
     b: Any
     side: Any = None
+    image_side: Any = None
     near: Any = None
     n_near: Any = None
     reaction: Any = None

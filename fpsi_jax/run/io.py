@@ -481,7 +481,7 @@ _RUN_TALLIES = (".status.sph_need", ".status.dem_need", ".status.dem_rebuilds")
 #: state leaves a checkpoint may lack, with the value that is always safe (None: the fresh
 #: state's own): every disc's wall contacts are then evaluated until the DEM list's next
 #: rebuild asks which discs are near a wall again
-_SAFE_DEFAULTS = {".walls.near": None, ".walls.n_near": 2 ** 30, ".status.dem_stale": False}
+_SAFE_DEFAULTS = {".walls.near": None, ".walls.image_side": None, ".walls.n_near": 2 ** 30, ".status.dem_stale": False}
 
 
 def restore(state, ck: Checkpoint):

@@ -110,6 +110,16 @@ def _outline(item):
     return a, b
 
 
+def _outward(a, b) -> float:
+    """The side (WallBlock convention: +1 the left of a → b) that faces out of a closed
+    outline a[k] → b[k]: −1 if it runs counter-clockwise (the inside on the left), +1 if
+    clockwise; 0 for an open polyline (water on both sides: no images)."""
+    if not np.allclose(b[-1], a[0]):
+        return 0.0
+    area = 0.5 * float(np.sum(a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1]))
+    return -1.0 if area > 0 else 1.0
+
+
 def polyline_particles(vertices, dx, layers):
     """Fixed particles along an open polyline: on each segment, points every dx (centred on
     the segment) in ``layers`` rows at (k + ½) dx on its right-hand side."""
@@ -536,7 +546,7 @@ def compose(spec: dict, path: str) -> SceneFile:
             and not any(t in ("structure", "kinematic") for t, _, _, _ in groups)):
         fail(path, "fluid", "the water has nothing to hold it: no [tank], no [[obstacle]] "
              "and no structure or kinematic body; add a [tank] (width, height)")
-    xb_parts, dx_parts, wall_a, wall_b, wall_side = [], [], [], [], []
+    xb_parts, dx_parts, wall_a, wall_b, wall_side, image_side = [], [], [], [], [], []
     pad = 0.0
     hb = None
     if tank is not None:
@@ -561,6 +571,7 @@ def compose(spec: dict, path: str) -> SceneFile:
             wall_a.append(w.a)
             wall_b.append(w.b)
             wall_side.append(w.sides())         # the tank's walls act on the inside
+            image_side.append(w.sides())
     obstacles = {}             # name -> (its boundary rows (a, b), its DEM walls (a, b))
     if wall_a and has_discs:   # the tank's walls (box_walls' order): the discs' load on each
         obstacles.update({f"tank.{side}": (None, (k, k + 1))
@@ -594,6 +605,7 @@ def compose(spec: dict, path: str) -> SceneFile:
             wall_a.append(a)
             wall_b.append(b)
             wall_side.append(np.zeros(len(a)))  # an obstacle's outline acts on both sides
+            image_side.append(np.full(len(a), _outward(a, b)))
             if has_discs:
                 walls_of = (first_wall, first_wall + len(a))
         if ob["name"] is not None and (rows or walls_of):
@@ -607,8 +619,13 @@ def compose(spec: dict, path: str) -> SceneFile:
             cat = lambda k: np.concatenate([getattr(b, k) for b in blocks])
             boundary = type(blocks[0])(x=cat("x"), rho=cat("rho"), p=cat("p"),
                                        mass=cat("mass"), h=cat("h"))
-    walls = (WallBlock(a=np.concatenate(wall_a), b=np.concatenate(wall_b),
-                       side=np.concatenate(wall_side)) if wall_a and has_discs else None)
+    walls = None
+    if wall_a and has_discs:
+        side, img = np.concatenate(wall_side), np.concatenate(image_side)
+        wet = fluid is not None and any(t == "grains" or item.get("grain")
+                                        for t, item, _, _ in groups)
+        walls = WallBlock(a=np.concatenate(wall_a), b=np.concatenate(wall_b), side=side,
+                          image_side=img if wet and not np.array_equal(img, side) else None)
 
     # parameters
     structures = spec.get("structure", [])

@@ -335,11 +335,11 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
           "voidage 'mapped' and eps_floor 0.8, the seeds' set-up, whose pore fluid is "
           "heavier than its pores hold: docs/physics.md, Packed beds)", lo=0.0,
           hi=1.0, hi_open=True),
-      Key("wall_images", "bool", "", True, "the grains' mirror images in the tank's DEM walls "
-          "count in the voidage (the part of a grain's kernel inside a wall goes back to the "
-          "fluid's side: a bed at rest loads the floor right; an obstacle's outline acts on "
-          "both sides and gives none, so a bed resting on an obstacle is buoyed about 7 % "
-          "short, as a bed on the floor without images); false makes the pores by the "
+      Key("wall_images", "bool", "", True, "the grains' mirror images in the DEM walls count "
+          "in the voidage (the part of a grain's kernel inside a wall goes back to the "
+          "fluid's side: a bed at rest loads the floor right), in the tank's walls and on the "
+          "outer side of an obstacle's box or polygon (a polyline, with water on both sides, "
+          "has none); false makes the pores by the "
           "floor less tight, which let the flush of examples/sediment_flushing.toml run; "
           "water running onto a dry bed can go unstable either way and runs floored "
           "(voidage 'mapped', eps_floor 0.8: docs/physics.md, Packed beds)"),

@@ -118,6 +118,8 @@ def allocated_state(scene: Scene, phys: Physics) -> State:
         if scene.walls is not None:
             walls = WallState(a=a(scene.walls.a), b=a(scene.walls.b),
                               side=a(scene.walls.sides()),
+                              image_side=(None if scene.walls.image_side is None
+                                          else a(scene.walls.image_sides())),
                               reaction=(a(np.zeros((scene.walls.n, 3))) if phys.wall_reaction
                                         else None))
         if scene.bonds is not None:

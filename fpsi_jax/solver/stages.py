@@ -624,7 +624,7 @@ def grain_images(phys: Physics, state: State, x_p):
     if not phys.wall_images or state.walls is None:
         return None
     w = state.walls
-    return fpi.wall_images(x_p, w.a, w.b, w.side)
+    return fpi.wall_images(x_p, w.a, w.b, w.side if w.image_side is None else w.image_side)
 
 
 def continuity_velocity(phys: Physics, fluid):
