@@ -162,7 +162,9 @@ _DISC_COMMON = (
         "point (a polydisperse set; a structure takes one)"),
     Key("packing", "str", "", None, "packing of box/polygon (default: 'hex' for grains, "
         "'square' otherwise)", choices=PACKING),
-    _pos("rho", "kg/m³", REQUIRED, "density"),
+    Key("rho", "float", "kg/m³", REQUIRED, "density (at least 10 kg/m³: a density in g/cm³ "
+        "is written with its unit, \"2.65 g/cm3\"; 2.65 would be read as kg/m³ and set a "
+        "DEM step ~30× too short)", lo=10.0),
     _pos("thickness", "m", 1.0, "out-of-plane thickness t of the discs' mass"),
     Key("velocity", "vectors", "m/s", (0.0, 0.0), "initial velocity (one vector, or one per "
         "disc); of a [[kinematic]] body, the constant velocity it moves at"),

@@ -51,6 +51,8 @@ BAD = [
      ["[fluid]", "unknown key 'densty'", "allowed: density, viscosity"]),
     ("water without a tank", lambda t: t.split("[tank]")[0],
      ["[fluid]", "the water has nothing to hold it", "add a [tank]"]),
+    ("a density in g/cm3 without its unit", lambda t: edit(t, "rho = 1100.0", "rho = 1.1"),
+     ["[[structure]] 'gate'", "key 'rho'", "allowed [10.0, inf) kg/m³"]),
     ("gravity pointing up", lambda t: edit(t, "t_end = 0.01", "t_end = 0.01\ngravity = [0, 9.81]"),
      ["[scene]", "key 'gravity' = [0.0, 9.81] points up", "[0, -9.81]"]),
     ("unknown table", lambda t: t + "\n[flud]\nx = 1\n",
