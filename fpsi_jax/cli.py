@@ -33,7 +33,7 @@ def cmd_list(args):
 
 def list_keys(name: str) -> int:
     """``fpsi list NAME``: the keys ``--set`` takes for a registered scene, a validation case
-    (its scene, as the case builds it) or a scene file, with their values."""
+    (its scene's keys, with the builder's defaults) or a scene file, with their values."""
     from . import cases
     from .cases import overrides as ov
     if is_scene_file(name):
@@ -42,10 +42,14 @@ def list_keys(name: str) -> int:
     else:
         scene_name = cases.SCENE_OF.get(name, name)
         if scene_name not in cases.SCENES:
+            known = sorted(set(cases.SCENES) | set(cases.SCENE_OF))
             raise ParameterError(f"{name!r} is no scene, validation case or scene file (.toml); "
-                                 f"allowed: {', '.join(sorted(set(cases.SCENES) | set(cases.SCENE_OF)))}")
+                                 f"allowed: {', '.join(known)}")
         scene = cases.build(scene_name)
     print(f"--set KEY=VALUE keys of {name}:")
+    if name in cases.SCENE_OF and not is_scene_file(name):
+        print(f"(the validation case builds scene {scene_name!r} with its own values of some "
+              "of these; shown are the builder's defaults)")
     print("\n".join(ov.key_table(scene, scene_name)))
     return 0
 

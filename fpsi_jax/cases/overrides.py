@@ -56,10 +56,14 @@ def build(scene_name: str, overrides: dict, base: dict | None = None):
     return scene, apply(scene, rest, f"scene {scene_name!r}", keys, scene_name)
 
 
-#: a scene file's key -> the Params leaf it sets (what --set reaches)
+#: Physics options the run's set-up derives unless the scene sets them
+DERIVED_AT_SETUP = ("dem_substeps",)
+
+#: a scene file's key -> the Params leaf it sets, where --set on the leaf does what the
+#: key does (not density, sound speed or gravity: the start's hydrostatic densities and
+#: masses are built from them)
 FILE_KEYS = {"friction": "dem.mu", "rolling_friction": "dem.mu_roll", "beta_n": "dem.beta_n",
-             "density": "sph.rho0", "viscosity": "sph.mu", "sound_speed": "sph.c0",
-             "g": "gravity"}
+             "viscosity": "sph.mu"}
 
 
 def unknown_key(key: str, what: str, scene_keys, params, listing: str) -> ParameterError:
@@ -98,6 +102,8 @@ def key_table(scene, scene_name: str | None = None) -> list[str]:
     phys = Physics.for_scene(scene)
     for k in Physics.OPTIONS:
         v = getattr(phys, k, scene.options.get(k, "derived from the scene"))
+        if k in DERIVED_AT_SETUP and k not in scene.options:
+            v = "derived from the step bounds"
         kind = Physics.CHOICES.get(k)
         choices = f"  [{', '.join(m.value for m in kind)}]" if kind is not None else ""
         lines.append(f"  {k:28s} {_value(v)}{choices}")

@@ -273,12 +273,23 @@ class GrainRows(NamedTuple):
     ws: object = None
 
 
-def wall_images(x_p, a, b, side):
+class WallImages(NamedTuple):
+    """The grains' mirror images in the walls (:func:`wall_images`): ``x`` (n_g, W, 2),
+    ``on`` (n_g, W) whether grain p has an image in wall k, and each wall's line, a point
+    ``a`` (W, 2) and the unit normal ``n_in`` (W, 2) into the fluid's side."""
+    x: object
+    on: object
+    a: object
+    n_in: object
+
+
+def wall_images(x_p, a, b, side) -> WallImages:
     """Mirror images of the grains in the one-sided DEM walls a[k] → b[k] (``side`` ±1, the
     fluid's side; scene.WallBlock): x'_pk = x_p − 2 s_pk n_k, with n_k the wall's inward
     normal and s_pk = (x_p − a_k)·n_k > 0 the grain's distance from the wall's line, for the
-    walls whose segment the grain projects onto. Returns ((n_g, W, 2) images, (n_g, W)
-    mask); two-sided walls (side 0) have none.
+    walls whose segment the grain projects onto; two-sided walls (side 0) have none. An
+    image counts only for fluid on the wall's fluid side (:func:`grain_rows`): water behind
+    a thin obstacle, or beyond one far from the grain, never sees it.
 
     Why: the voidage sum 1 − ε_f = Σ_p V_p W(x_f − x_p) gives each grain its whole kernel
     mass only where its support lies in the fluid. Next to a wall part of it lies inside
@@ -302,15 +313,15 @@ def wall_images(x_p, a, b, side):
     along = jnp.sum(rel * ab[None], axis=-1) / jnp.sum(ab * ab, axis=-1)
     dist = jnp.sum(rel * n_in[None], axis=-1)                             # (n_g, W)
     on = (side[None] != 0) & (along >= 0.0) & (along <= 1.0) & (dist > 0.0)
-    return x_p[:, None, :] - 2.0 * dist[..., None] * n_in[None], on
+    return WallImages(x_p[:, None, :] - 2.0 * dist[..., None] * n_in[None], on, a, n_in)
 
 
 def grain_rows(kern, x_f, h_f, vol_f, x_p, idx_g, n_fluid, images=None) -> GrainRows:
     """Kernel values W(|x_p − x_f|, h_f) (the fluid particle's h) of the grain rows ``idx_g``,
     whose entries below n_fluid are fluid neighbours. ``images`` (:func:`wall_images`) add
-    their kernel values W(|x'_pk − x_f|, h_f) to ``ws``: an image is farther from every
-    fluid particle on the wall's fluid side than its grain, so the grain's row holds all of
-    its image's neighbours."""
+    their kernel values W(|x'_pk − x_f|, h_f) to ``ws`` for the fluid on wall k's fluid
+    side: an image is farther from every such fluid particle than its grain, so the
+    grain's row holds all of its image's neighbours."""
     valid = idx_g < n_fluid
     j = jnp.where(valid, idx_g, n_fluid)
     nbr = gather(jnp.concatenate([x_f, h_f[:, None], vol_f[:, None]], axis=1), j)
@@ -320,10 +331,11 @@ def grain_rows(kern, x_f, h_f, vol_f, x_p, idx_g, n_fluid, images=None) -> Grain
     f = jnp.where(valid, kern.grad_factor(r2, nbr[..., 2]), 0.0)
     ws = w
     if images is not None:
-        x_img, on = images
-        for k in range(x_img.shape[1]):
-            r_k = safe_sqrt(norm2(x_img[:, None, k, :] - nbr[..., 0:2]))
-            ws = ws + jnp.where(valid & on[:, k:k + 1], kern.w(r_k, nbr[..., 2]), 0.0)
+        for k in range(images.x.shape[1]):
+            r_k = safe_sqrt(norm2(images.x[:, None, k, :] - nbr[..., 0:2]))
+            front = jnp.sum((nbr[..., 0:2] - images.a[k]) * images.n_in[k], axis=-1) > 0.0
+            ws = ws + jnp.where(valid & images.on[:, k:k + 1] & front,
+                                kern.w(r_k, nbr[..., 2]), 0.0)
     return GrainRows(j, valid, w, jnp.where(valid, nbr[..., 3], 0.0), dx, f, ws)
 
 

@@ -107,8 +107,9 @@ def force(name: str, scene, idx, about=None) -> Probe:
 
     On discs that move under their forces it is the fluid's force (Σ F_i of the FSI
     coupling, W6.1), the hydrodynamic load on a structure; on grains in the fluid, the
-    fluid's force on them, buoyancy and drag (W19, ``FpiState.force``), at their centres. On discs that are all held
-    (clamped or kinematic: a support, a platen, a gate driven at a given speed) it is
+    fluid's force on them, buoyancy and drag (W19, ``FpiState.force``), at their centres.
+    On discs that are all held (clamped or kinematic: a support, a platen, a gate driven
+    at a given speed) it is
     everything the rest of the model puts on them: the fluid's force where they are
     coupled to it, plus the free discs' contacts and the bonds to free discs
     (SolidState.reaction, the mean over the step's DEM sub-steps), the force a support
@@ -118,7 +119,8 @@ def force(name: str, scene, idx, about=None) -> Probe:
     _need(scene, "solid", name)
     ii = _indices(idx, scene.solid.n, f"probe {name!r}")
     held = bool(np.all(np.asarray(scene.solid.fixed, bool)[ii]))
-    structure = scene.solid.structure_indices() if scene.fluid is not None else np.zeros(0)
+    structure = (scene.solid.structure_indices() if scene.fluid is not None
+                 and scene.options.get("fsi") is not None else np.zeros(0))
     rows = np.flatnonzero(np.isin(structure, ii))
     grains = (scene.solid.grain_indices() if scene.fluid is not None
               and scene.options.get("fpi") else np.zeros(0))
@@ -147,6 +149,10 @@ def force(name: str, scene, idx, about=None) -> Probe:
         for part, r in (("fsi", rr), ("fpi", gr)):
             if r.size:                       # the fluid's force, at the discs' centres
                 coupled = getattr(s, part)
+                if coupled is None:
+                    raise ParameterError(f"probe {name!r} reads the fluid's force on its "
+                                         f"discs, and the run has no {part} coupling (an "
+                                         f"option set off?)")
                 f = coupled.force[r]
                 x = s.solid.x[coupled.idx[r]] - cc
                 m = jnp.sum(x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0])

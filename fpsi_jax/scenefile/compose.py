@@ -112,10 +112,8 @@ def _outline(item):
 
 def _outward(a, b) -> float:
     """The side (WallBlock convention: +1 the left of a → b) that faces out of a closed
-    outline a[k] → b[k]: −1 if it runs counter-clockwise (the inside on the left), +1 if
-    clockwise; 0 for an open polyline (water on both sides: no images)."""
-    if not np.allclose(b[-1], a[0]):
-        return 0.0
+    outline a[k] → b[k] (a box or polygon): −1 if it runs counter-clockwise (the inside on
+    the left), +1 if clockwise."""
     area = 0.5 * float(np.sum(a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1]))
     return -1.0 if area > 0 else 1.0
 
@@ -502,7 +500,7 @@ def compose(spec: dict, path: str) -> SceneFile:
     g = math.hypot(*g_vec)
     if g_vec[1] > 0:
         fail(path, "scene", f"key 'gravity' = {list(g_vec)} points up: y is up, so gravity "
-             f"takes a negative y component, e.g. [0, -{g_vec[1]:g}]")
+             f"takes a negative y component, [{g_vec[0]:g}, {-g_vec[1]:g}]")
     name = sc["name"] or os.path.splitext(os.path.basename(path))[0]
     fluid = sp = h = None
     v_max = sc["v_max"]
@@ -516,6 +514,9 @@ def compose(spec: dict, path: str) -> SceneFile:
     names = {}
     for t in GROUPS:
         for i, item in enumerate(spec.get(t, [])):
+            if item["name"].startswith("tank."):
+                fail(path, t, f"name {item['name']!r}: names tank.* are the tank's walls "
+                     "(force probes on tank.floor, tank.left, tank.right)", item, i)
             if item["name"] in names:
                 fail(path, t, f"name {item['name']!r} is used by another body ({names[item['name']]})",
                      item, i)
@@ -542,7 +543,8 @@ def compose(spec: dict, path: str) -> SceneFile:
     # fixed SPH particles and DEM walls
     has_discs = solid is not None
     tank = spec.get("tank")
-    if (tank is None and fluid is not None and not spec.get("obstacle")
+    if (tank is None and fluid is not None and not spec.get("obstacle") and g > 0
+            and spec["scene"]["domain"] is None
             and not any(t in ("structure", "kinematic") for t, _, _, _ in groups)):
         fail(path, "fluid", "the water has nothing to hold it: no [tank], no [[obstacle]] "
              "and no structure or kinematic body; add a [tank] (width, height)")
@@ -578,7 +580,8 @@ def compose(spec: dict, path: str) -> SceneFile:
                           for k, side in enumerate(("floor", "left", "right"))})
     for i, ob in enumerate(spec.get("obstacle", [])):
         how = _shape(path, "obstacle", ob, i, ("box", "polygon", "polyline"))
-        if ob["name"] is not None and (ob["name"] in names or ob["name"] in obstacles):
+        if ob["name"] is not None and (ob["name"] in names or ob["name"] in obstacles
+                                       or ob["name"].startswith("tank.")):
             fail(path, "obstacle", f"name {ob['name']!r} is used by another body or "
                  "obstacle", ob, i)
         rows = walls_of = None
@@ -605,7 +608,7 @@ def compose(spec: dict, path: str) -> SceneFile:
             wall_a.append(a)
             wall_b.append(b)
             wall_side.append(np.zeros(len(a)))  # an obstacle's outline acts on both sides
-            image_side.append(np.full(len(a), _outward(a, b)))
+            image_side.append(np.full(len(a), 0.0 if how == "polyline" else _outward(a, b)))
             if has_discs:
                 walls_of = (first_wall, first_wall + len(a))
         if ob["name"] is not None and (rows or walls_of):
@@ -843,6 +846,8 @@ def _probes(path, spec, scene, bodies, obstacles=None):
             probes.append(P.obstacle_force(name, scene, rows, pr["about"], walls))
             _reference(path, folder, pr, i, probes[-1], refs)
             continue
+        if pr["region"] is not None and pr["body"] is None:
+            fail(path, "probe", "key 'region' selects discs of a `body`: name the body", pr, i)
         if pr["body"] is not None:
             if pr["body"] not in bodies:
                 known = list(bodies) + [f"{o} (obstacle)" for o in obstacles]

@@ -276,7 +276,9 @@ def test_wall_images_mirror_the_grains_in_one_sided_walls_they_project_onto():
     b = jnp.asarray([[1.0, 0.0], [1.0, 0.5], [1.0, 1.0]])
     side = jnp.asarray([1, 0, 1])          # the right wall's left side: (−t_y, t_x) = (−1, 0)
     x_p = jnp.asarray([[0.3, 0.002], [1.2, 0.002], [0.3, -0.001], [0.997, 0.4]])
-    img, on = fpi.wall_images(x_p, a, b, side)
+    img, on, _, n_in = fpi.wall_images(x_p, a, b, side)
+    np.testing.assert_allclose(np.asarray(n_in), [[0.0, 1.0], [0.0, 0.0], [-1.0, 0.0]],
+                               atol=1e-15)
     # (the first grain's image in the right wall is 1.4 m off: its kernel values are zero)
     np.testing.assert_array_equal(np.asarray(on), [[True, False, True],    # above the floor
                                                    [False, False, False],  # beyond its end
@@ -384,3 +386,20 @@ def test_added_mass_limit_is_half_the_mass_the_weights_see_shared_between_grains
                         jnp.zeros((2, 2, 2)), jnp.zeros((2, 2)))
     np.testing.assert_allclose(np.asarray(fpi.added_mass_limit(two, m_f)), want / 2,
                                rtol=1e-12)
+
+
+def test_an_image_counts_only_for_the_fluid_on_its_walls_side():
+    """A grain beside a thin obstacle's face (its outline one-sided outward for the images)
+    gives its image's kernel to the fluid on its own side only: water behind the face (on
+    the obstacle's far side, or beyond a far grain's mirror) sees no solid from it."""
+    kern = kernels.get("wendland")
+    h = 0.003
+    walls = (jnp.asarray([[0.0, -1.0]]), jnp.asarray([[0.0, 1.0]]), jnp.asarray([1]))
+    # the wall x = 0 from (0,-1) to (0,1), side +1: its left, −x, is the fluid's side
+    x_p = jnp.asarray([[-0.002, 0.0]])
+    x_f = np.asarray([[-0.001, 0.0], [0.002, 0.0], [0.004, 0.0]])     # front; behind ×2
+    eps = np.asarray(fpi.voidage_at(kern, x_f, np.full(3, h), x_p, jnp.asarray([1e-6]),
+                                    walls=walls))
+    alone = np.asarray(fpi.voidage_at(kern, x_f, np.full(3, h), x_p, jnp.asarray([1e-6])))
+    assert eps[0] < alone[0]                     # the image adds solid in front
+    np.testing.assert_allclose(eps[1:], alone[1:], rtol=1e-12)     # none behind

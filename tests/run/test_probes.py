@@ -29,7 +29,7 @@ def scene(fluid=True, solid=True):
     return Scene(name="probe_test", params=Params(sph=sp if fluid else None,
                                                   dem=DemParams() if solid else None),
                  domain_lo=(-0.1, -0.1), domain_hi=(0.6, 0.3), v_max=1.0, fluid=fl,
-                 solid=blk)
+                 solid=blk, options={"fsi": "stationary"} if fluid and solid else {})
 
 
 def solid_state(x, **kw):
@@ -119,6 +119,19 @@ kind = "front"
 body = "bed"
 above = 0.05
 """
+
+
+def test_force_on_grains_of_a_registered_bed_reads_their_fluid_force_only():
+    """A bed built by Python (no structure flags: every disc counts as structure to
+    structure_indices) has no FSI coupling: the probe reads the grains' FpiState.force."""
+    from fpsi_jax import cases
+    sc = cases.build("grain_bed", t_end=0.01)
+    p = P.force("f", sc, range(5))
+    g = sc.solid.grain_indices()
+    f = np.zeros((g.size, 2))
+    f[:5] = [[1.0, 2.0]] * 5
+    s = solid_state(sc.solid.x, fsi=None, fpi=NS(force=jnp.asarray(f), idx=jnp.asarray(g)))
+    np.testing.assert_allclose(p(s)[:2], [5.0, 10.0], rtol=1e-6)
 
 
 def test_force_on_discs_of_a_dry_scene_is_refused_before_the_run():

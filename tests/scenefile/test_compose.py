@@ -238,3 +238,13 @@ def test_a_bed_on_an_obstacle_sees_the_voidage_of_a_bed_on_the_floor(tmp_path):
     assert list(on_slab.walls.sides()[3:]) == [0.0] * 4           # contacts: both sides
     np.testing.assert_allclose(on_slab.fluid.x - [0.0, 0.012], floor.fluid.x, atol=1e-12)
     np.testing.assert_allclose(on_slab.fluid.mass, floor.fluid.mass, rtol=1e-9)
+
+
+def test_water_without_a_tank_is_refused_only_where_gravity_takes_it_away(tmp_path):
+    """A blob of water without gravity in a closed domain of its own loads; the same water
+    under gravity with nothing to hold it is refused (scene-file test_errors)."""
+    path = tmp_path / "blob.toml"
+    path.write_text('[scene]\nt_end = 0.01\ngravity = [0, 0]\ndomain = [-1, -1, 1, 1]\n'
+                    'open_sides = ["none"]\n[fluid]\ndx = 0.01\nsound_speed = 10.0\n'
+                    '[[fluid.region]]\nbox = [0.0, 0.0, 0.1, 0.1]\n')
+    assert scenefile.load(str(path)).scene.fluid.n == 100
