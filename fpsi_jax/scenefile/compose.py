@@ -152,6 +152,9 @@ def _fluid(path, spec, g):
     if v_max is None:
         v_max = dam_speed(max(tops) - min(bottoms), g)
     c0 = fl["sound_speed"] or sound_speed(v_max, fl["sound_speed_factor"])
+    if not c0 > 0:
+        fail(path, "fluid", "without gravity the flow's speed scale is 0: give [fluid] "
+             "sound_speed or [scene] v_max")
     sp = sph_params(fl["density"], c0, fl["viscosity"], dx, fl["r_clump"], fl["eps_xsph"],
                     fl["delta"], gamma=fl["gamma"], alpha=fl["alpha"])
     blocks = []

@@ -248,3 +248,7 @@ def test_water_without_a_tank_is_refused_only_where_gravity_takes_it_away(tmp_pa
                     'open_sides = ["none"]\n[fluid]\ndx = 0.01\nsound_speed = 10.0\n'
                     '[[fluid.region]]\nbox = [0.0, 0.0, 0.1, 0.1]\n')
     assert scenefile.load(str(path)).scene.fluid.n == 100
+    path.write_text(path.read_text().replace("sound_speed = 10.0\n", ""))
+    with pytest.raises(Exception, match=r"\[fluid\]: without gravity .* sound_speed or "
+                                         r"\[scene\] v_max"):
+        scenefile.load(str(path))
