@@ -309,14 +309,12 @@ def front(name: str, scene, direction: str = "+x", idx=None, above=None) -> Prob
         ii = jnp.asarray(_indices(idx, scene.solid.n, f"probe {name!r}"))
 
     def fn(s):
+        block = s.fluid if ii is None else s.solid
+        x, inside, reach = block.x, observers.in_computation(block), None
         if ii is None:
-            block, reach = s.fluid, half
+            reach = half
         else:
-            block, reach = s.solid, s.solid.radius[ii]
-        x = block.x if ii is None else block.x[ii]
-        inside = observers.in_computation(block)
-        if ii is not None:
-            inside = inside[ii]
+            x, inside, reach = x[ii], inside[ii], block.radius[ii]
         if above is not None:
             inside = inside & (x[:, 1] > above)
         edge = jnp.max(jnp.where(inside, sign * x[:, 0] + reach, -jnp.inf))

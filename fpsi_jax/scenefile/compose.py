@@ -628,8 +628,7 @@ def compose(spec: dict, path: str) -> SceneFile:
     walls = None
     if wall_a and has_discs:
         side, img = np.concatenate(wall_side), np.concatenate(image_side)
-        wet = fluid is not None and any(t == "grains" or item.get("grain")
-                                        for t, item, _, _ in groups)
+        wet = fluid is not None and bool(np.any(solid.grain))    # grains in the fluid
         walls = WallBlock(a=np.concatenate(wall_a), b=np.concatenate(wall_b), side=side,
                           image_side=img if wet and not np.array_equal(img, side) else None)
 
