@@ -127,6 +127,13 @@ class Parking:
 
 
 
+def h_over_dp(scene) -> float:
+    """η = h/Δp of the scene's fluid lattice (the median over its particles), with which a
+    fluid particle's h follows its superficial volume among grains (Physics.pore_neighbours)."""
+    return float(np.median(np.asarray(scene.fluid.h, float))
+                 / float(scene.params.sph.dp))
+
+
 #: scene-file and builder keywords whose Physics option has another name
 ALIASES = {"coupling": "fsi"}
 
@@ -142,6 +149,7 @@ RANGES = {"h_margin": (1.0, 2.0, False, False, False),
           "capacity_multiplier": (1.0, 10.0, False, False, False),
           "dem_skin": (0.0, 2.0, False, False, False),        # × R_max
           "eps_floor": (0.0, 1.0, False, True, False),
+          "pore_neighbours": (0.0, 1.0, False, False, False),
           "dem_substeps": (1, 10000, False, False, True),
           "pair_block": (0, 10**8, False, False, True),
           "rebuild_block": (0, 10**8, False, False, True),
@@ -338,6 +346,12 @@ class Physics:
       added_mass           the added-mass force on wet grains, C_a ρ_f V_p (Du/Dt − dv_p/dt)
                            with C_a = Params.fpi.added_mass, and its reaction on the fluid
                            (off by default: the seeds have none; fpi.py)
+      pore_neighbours      φ: with the 'shared' pressure, a fluid particle among grains
+                           keeps at least φ of the clear lattice's neighbours, its h growing
+                           with its superficial volume, h = η √max(φ m/(ερ), Δp² ρ0/ρ)
+                           (sph.smoothing_length_among_grains; η = h_over_dp, derived from
+                           the scene): water that runs into a bed's pores stays resolved;
+                           default 0.5; 0: off, h follows ρ alone (K37)
       wall_images          the grains' mirror images in the one-sided DEM walls count in the
                            fluid's solid fraction (fpi.wall_images): the part of a grain's
                            kernel inside a wall is put back on the fluid's side
@@ -404,6 +418,8 @@ class Physics:
     eps_floor: float = 0.0
     lubrication: bool = True
     added_mass: bool = False
+    pore_neighbours: float = 0.5
+    h_over_dp: float = 0.0
     wall_images: bool = True
     domain_lo: tuple | None = None
     domain_hi: tuple | None = None
@@ -425,6 +441,7 @@ class Physics:
                "fpi_pressure", "eps_floor", "drag", "pair_block", "rebuild_block",
                "density_diffusion",
                "wall_images", "shifting", "sort_fluid", "transport_continuity", "added_mass",
+               "pore_neighbours",
                "dem_list_substeps", "structure_acceleration", "wall_force",
                "wall_reaction", "disc_reaction", "kinematic_motion")
 
@@ -548,6 +565,7 @@ class Physics:
                    n_bonds=scene.bonds.n if scene.bonds else 0,
                    n_walls=scene.walls.n if scene.walls else 0,
                    dem_neighbors=dem_nb, n_structure=n_structure, n_grain=n_grain,
+                   h_over_dp=h_over_dp(scene) if n_grain else 0.0,
                    moving_discs=moving_discs(scene.solid), **opts)
 
     @property
@@ -582,6 +600,8 @@ class Physics:
                   "fpi.reaction"]
             m += ["fpi.lubrication"] if self.lubrication else []
             m += ["fpi.added_mass"] if self.added_mass else []
+            m += (["sph.pore_neighbours"] if self.pore_neighbours > 0
+                  and self.fpi_pressure is FpiPressure.SHARED else [])
         return tuple(m)
 
     @property

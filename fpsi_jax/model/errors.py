@@ -84,7 +84,8 @@ class SimulationError(RuntimeError):
     """A run went unstable. Attributes: step, time, particle, phase, quantity, output,
     position (the particle's (x, y) in the last good frame, or None) and voidage (a fluid
     particle's ε there among grains, else None). ``set_up``: the remedies the run already
-    has ('floored', 'no_wall_images'), which the hint then leaves out."""
+    has ('floored', 'all_neighbours': Physics.pore_neighbours already 1), which the hint
+    then leaves out."""
 
     def __init__(self, step, t, particle, quantity, phase="fluid", output=None, t_good=None,
                  position=None, voidage=None, set_up=()):
@@ -99,14 +100,12 @@ class SimulationError(RuntimeError):
         where = f"; frames up to t = {t_good:.6g} s are in {output}" if output else ""
         hint = ""
         if voidage is not None and voidage < FLOORED_VOIDAGE and "floored" not in set_up:
-            hint = ("; pore fluid of a packed bed under a flow can go unstable at its own "
-                    "voidage (docs/physics.md, Packed beds): [physics] voidage = \"mapped\" "
-                    f"with eps_floor = {FLOORED_VOIDAGE} runs it floored, as the seeds did "
-                    "(water running onto a dry bed ran so)")
-            if "no_wall_images" not in set_up:
-                hint += ("; [physics] wall_images = false keeps its own voidage and leaves "
-                         "the pores by the walls less tight, which sometimes suffices (the "
-                         "flushing example)")
+            hint = "; pore fluid of a packed bed can go unstable (docs/physics.md, Packed beds)"
+            if "all_neighbours" not in set_up:
+                hint += (": [physics] pore_neighbours above its default 0.5 (at most 1) gives "
+                         "the water among the grains a wider kernel")
+            hint += (f"; [physics] voidage = \"mapped\" with eps_floor = {FLOORED_VOIDAGE} "
+                     "runs it floored, as the seeds did")
         super().__init__(f"run unstable at step {step} (t = {t:.6g} s): {phase} particle "
                          f"{particle}: {quantity}{at}{where}{hint}")
 

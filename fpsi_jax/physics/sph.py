@@ -170,6 +170,29 @@ def smoothing_length_rate(h, rho, drho, n_d=2.0):
     return -h / (n_d * rho) * drho
 
 
+def smoothing_length_among_grains(eta, m, eps, rho, dp, rho0, phi=0.5, variable_h=True):
+    """A fluid particle's smoothing length among grains, from its superficial volume
+    V = m/(ερ):
+
+        h = η √max(φ V, Δp² ρ0/ρ)     (Δp² when the smoothing length is constant),
+
+    η = h0/Δp of the fluid lattice. The second term is K37 integrated, h = h0 √(ρ0/ρ),
+    which a clear-water particle (ε = 1, V = Δp² ρ0/ρ) and one born in a bed (m = ε0 ρ0
+    Δp², V ≈ Δp² while ε ≈ ε0) keep. Water that runs from clear water into pores of
+    voidage ε is spread over V = Δp²/ε: its particles stand Δp/√ε apart and, at a fixed h,
+    keep about ε of their neighbours (two or three at ε ≈ 0.13), so its density and
+    pressure are no longer kernel averages and the pore water goes unstable
+    (docs/physics.md, Packed beds). The first term grows h so that a particle keeps at
+    least φ of the lattice's neighbours (their number goes as h²/V). Below that, h stays
+    the lattice's: a position-dependent h has no partner term in the shared pressure's
+    energy balance, and following every small change of ε (φ = 1) kept a random bed's
+    pore water moving at 2–3 % of √(gH); shrinking h where ε rose made a bed unstable.
+    Cf. the adaptive h = η (m/ρ)^(1/d) of summation-density SPH (Price 2012, J. Comput.
+    Phys. 231, 759–794), here with the superficial density ερ."""
+    floor = dp * dp * (rho0 / rho if variable_h else 1.0)
+    return eta * jnp.sqrt(jnp.maximum(phi * m / (eps * rho), floor))
+
+
 def density_rate(phys, sp, rho_i, pr: Pairs, eps=None, rho_intrinsic=None, gravity=None):
     """Dρ/Dt of the fluid rows: continuity (K32) plus δ-SPH diffusion when switched on
     (``phys.density_diffusion``; the Fourtakas form needs ``gravity``).

@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..model import limits
-from ..model.config import Physics
+from ..model.config import KERNEL_SUPPORT, Physics
 from ..model.errors import (FLOORED_VOIDAGE, Interrupted, ParameterError, SimulationError,
                             fmt, number)
 from ..model.params import Params
@@ -168,8 +168,16 @@ def grow(phys: Physics, failed: State) -> Physics:
     if phys.has_fluid:
         nb = phys.neighbors
         if bool(failed.status.h_exceeded):
-            nb = dataclasses.replace(nb, r_cut=nb.r_cut * 1.25)
-            phys = dataclasses.replace(phys, h_margin=phys.h_margin * 1.25)
+            # at least 1.25×, and room for the largest h the chunk reached (past the step
+            # that outgrew the cut-off its steps are inexact, but they tell how far h goes:
+            # water running into a bed's pores grows its h, Physics.pore_neighbours)
+            grown = max(1.25, 1.1 * KERNEL_SUPPORT * float(np.max(np.asarray(failed.fluid.h)))
+                        / nb.r_cut)
+            # and room for the grown reach's neighbours: a disc of radius r_cut holds
+            # grown² times as many (the wall rows' width is set, not measured, at a build)
+            nb = dataclasses.replace(nb, r_cut=nb.r_cut * grown, wall_width=int(
+                math.ceil(nb.wall_width * grown ** 2)) if nb.wall_width else nb.wall_width)
+            phys = dataclasses.replace(phys, h_margin=phys.h_margin * grown)
         if neighbors.overflowed(failed.nbrs):
             nb = neighbors.grow(nb, failed.nbrs, np.asarray(failed.status.sph_need))
         phys = dataclasses.replace(phys, neighbors=nb)
@@ -260,7 +268,7 @@ def raise_if_unstable(status, dt: float, output: str | None = None,
                 voidage = float(good.fpi.eps[i])
     set_up = () if phys is None else (
         ("floored",) * (phys.eps_floor >= FLOORED_VOIDAGE)
-        + ("no_wall_images",) * (not phys.wall_images))
+        + ("all_neighbours",) * (phys.pore_neighbours >= 1.0))
     raise SimulationError(int(status.step), int(status.step) * dt, i, STATUS_CODES[code],
                           phase=phase, output=output, t_good=t_good, position=position,
                           voidage=voidage, set_up=set_up)

@@ -698,7 +698,8 @@ def compose(spec: dict, path: str) -> SceneFile:
                 fail(path, "physics", "key 'fpi' = true: the scene has no grains")
             options.update(fpi=True, voidage=ph["voidage"], eps_floor=ph["eps_floor"],
                            drag=ph["drag"], wall_images=ph["wall_images"],
-                           lubrication=ph["lubrication"], added_mass=ph["added_mass"])
+                           lubrication=ph["lubrication"], added_mass=ph["added_mass"],
+                           pore_neighbours=ph["pore_neighbours"])
             if ph["fpi_pressure"] is not None:     # else Physics chooses by the packing
                 options["fpi_pressure"] = ph["fpi_pressure"]
             fpi_tbl = spec.get("fpi") or _defaults("fpi")

@@ -210,13 +210,12 @@ table("structure", True, "A bonded body: discs glued by parallel bonds between t
 
 table("grains", True, "Free grains (discs of density ρ, mass ρπR²t): a packed bed that "
       "feels the fluid through voidage, buoyancy and drag. Give `box`, `polygon` or "
-      "`points`. A bed under still water runs at its own voidage, and so did a bed "
-      "flushed from under a gate (with `wall_images = false`); water running onto a dry bed, or a column standing out of the water, "
-      "goes unstable where the first water enters the pores (after 0.2–0.3 s in the "
-      "cases measured; physics.md, *Packed beds*). Such a scene runs with `[physics] "
-      "voidage = \"mapped\"` and `eps_floor = 0.8`, the seeds' set-up, at a cost: the "
-      "pores hold about three times the water they should and the grains take 0.82 of "
-      "their buoyancy (physics.md, *Which voidage a 2D bed has*).",
+      "`points`. Beds run at their own voidage: under still water, flushed from under a "
+      "gate, and with water running onto them dry (the water that enters the pores "
+      "takes a wider kernel, `[physics] pore_neighbours`; physics.md, *Packed beds*). "
+      "`[physics] voidage = \"mapped\"` with `eps_floor = 0.8` gives the seeds' floored "
+      "set-up, whose pores hold about three times the water they should and whose grains "
+      "take 0.82 of their buoyancy (physics.md, *Which voidage a 2D bed has*).",
       *_DISC_COMMON,
       Key("n", "int", "", None, "keep only the first n discs of the packing (rows from the "
           "bottom)", lo=1),
@@ -333,18 +332,20 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
       Key("drag", "str", "", "sphere", "grain drag closure: the seed's sphere law (W19–W23) "
           "or a disc as a cylinder per unit length", choices=("sphere", "cylinder")),
       Key("eps_floor", "float", "", 0.0, "lower bound of the fluid voidage (0: the physical "
-          "voidage; a packed bed under a strong flow can go unstable at it, and runs with "
-          "voidage 'mapped' and eps_floor 0.8, the seeds' set-up, whose pore fluid is "
+          "voidage; with voidage 'mapped', 0.8 is the seeds' set-up, whose pore fluid is "
           "heavier than its pores hold: docs/physics.md, Packed beds)", lo=0.0,
           hi=1.0, hi_open=True),
       Key("wall_images", "bool", "", True, "the grains' mirror images in the DEM walls count "
           "in the voidage (the part of a grain's kernel inside a wall goes back to the "
           "fluid's side: a bed at rest loads the floor right), in the tank's walls and on the "
           "outer side of an obstacle's box or polygon (a polyline, with water on both sides, "
-          "has none); false makes the pores by the "
-          "floor less tight, which let the flush of examples/sediment_flushing.toml run; "
-          "water running onto a dry bed can go unstable either way and runs floored "
-          "(voidage 'mapped', eps_floor 0.8: docs/physics.md, Packed beds)"),
+          "has none); false leaves the pores by the "
+          "floor less tight and a bed on the floor buoyed about 7 % short"),
+      Key("pore_neighbours", "float", "", 0.5, "the least share of the clear water's "
+          "neighbours a fluid particle among grains keeps: water that runs into a bed's "
+          "pores is spread over Δx²/ε, and its h grows to keep this share (shared "
+          "pressure; 0: h follows the density alone and such water goes unstable: "
+          "docs/physics.md, Packed beds)", lo=0.0, hi=1.0),
       Key("bond_section", "str", "", "slab", "bond cross-section",
           choices=("slab", "circular")),
       Key("kernel", "str", "", "wendland", "SPH kernel", choices=("wendland", "cubic")),

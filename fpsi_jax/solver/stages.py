@@ -735,16 +735,22 @@ def _mixture_level(phys: Physics, params: Params, state: State, fam: SphFamily,
     modes) has no such partner: moving a fluid particle up the voidage gradient changes its
     pressure without work, which pumped energy into a packed bed's pore fluid until it
     blew up (docs/physics.md, Packed beds). ε' and J at the new positions come first, then
-    ρ' = ρ + dt Dρ/Dt, and h' follows the intrinsic density (K37 with ρ): the spacing of
-    the fluid's particles, which does not change when one moves among grains. (Following
-    ερ, a particle moving from ε = 0.16 to 0.22 shrank its h by 15 %, and a packed bed under
-    still water blew up after 0.2–1.7 s.)"""
+    ρ' = ρ + dt Dρ/Dt, and h' follows the intrinsic density (K37 with ρ), the spacing of
+    the fluid's particles, unless the particle's superficial volume m/(ε'ρ') outgrows what
+    its h can resolve (Physics.pore_neighbours, sph.smoothing_length_among_grains).
+    (Following ερ both ways, a particle moving from ε = 0.16 to 0.22 shrank its h by 15 %,
+    and a packed bed under still water blew up after 0.2–1.7 s.)"""
     sp, f = params.sph, state.fluid
     rows, eps_raw, eps, flux = mixture_voidage(phys, state, fam)
     drho = mixture_density_rate(phys, params, state, fam, eps, flux)
     rho_new = f.rho + dt * drho
     h_new = f.h
-    if phys.variable_h:
+    if phys.pore_neighbours > 0 and phys.h_over_dp > 0:
+        with jax.named_scope("sph.pore_neighbours"):
+            h_new = sph.smoothing_length_among_grains(phys.h_over_dp, f.mass, eps, rho_new,
+                                                      sp.dp, sp.rho0, phys.pore_neighbours,
+                                                      phys.variable_h)
+    elif phys.variable_h:
         with jax.named_scope("sph.variable_h"):
             h_new = f.h + dt * sph.smoothing_length_rate(f.h, f.rho, drho)
     rows = rows._replace(vol=gather(f.mass / (eps * rho_new), rows.idx, 0.0))

@@ -574,3 +574,29 @@ def test_momentum_rate_adds_the_shifting_to_the_position_term():
     np.testing.assert_array_equal(np.asarray(xs0), 0.0)
     np.testing.assert_allclose(np.asarray(xs1), np.asarray(want), rtol=1e-12, atol=1e-15)
     assert np.max(np.abs(np.asarray(want))) > 0
+
+
+def test_smoothing_length_among_grains():
+    eta, dp, rho0 = 1.25, 0.005, 1000.0
+    f = lambda m, eps, rho, phi=0.5, var=True: float(  # noqa: E731
+        sph.smoothing_length_among_grains(eta, jnp.float64(m), jnp.float64(eps),
+                                          jnp.float64(rho), dp, rho0, phi, var))
+    clear = rho0 * dp * dp
+    # clear water: K37 integrated, h0 √(ρ0/ρ)
+    assert f(clear, 1.0, 1010.0) == pytest.approx(eta * dp * math.sqrt(rho0 / 1010.0),
+                                                  rel=1e-14)
+    # a clear-water particle in a pore of ε = 0.13 is spread over Δp²/ε: h = h0 √(φ/ε),
+    # which keeps φ of the lattice's neighbours (h²/V = φ h0²/Δp²)
+    h = f(clear, 0.13, rho0)
+    assert h == pytest.approx(eta * dp * math.sqrt(0.5 / 0.13), rel=1e-14)
+    assert h * h / (dp * dp / 0.13) == pytest.approx(0.5 * eta * eta, rel=1e-14)
+    assert f(clear, 0.13, rho0, 1.0) == pytest.approx(eta * dp / math.sqrt(0.13), rel=1e-14)
+    # born in the bed (m = ε0 ρ0 Δp²): h0 until its pore is under φ of its birth voidage
+    assert f(0.2 * clear, 0.2, rho0) == pytest.approx(eta * dp, rel=1e-14)
+    assert f(0.2 * clear, 0.12, rho0) == pytest.approx(eta * dp, rel=1e-14)
+    assert f(0.2 * clear, 0.05, rho0) == pytest.approx(eta * dp * math.sqrt(2.0), rel=1e-14)
+    assert f(0.2 * clear, 0.4, rho0) == pytest.approx(eta * dp, rel=1e-14)
+    # without variable h the floor is the lattice's h0 whatever ρ
+    assert f(0.2 * clear, 0.4, 1010.0, var=False) == pytest.approx(eta * dp, rel=1e-14)
+    assert f(clear, 0.25, 1010.0, var=False) == pytest.approx(
+        eta * math.sqrt(0.5 * clear / (0.25 * 1010.0)), rel=1e-14)

@@ -80,10 +80,10 @@ def test_an_unstable_pore_particle_of_a_packed_bed_is_pointed_to_the_floored_set
     assert "eps_floor" not in str(SimulationError(3, 0.1, 5, "x", position=(0.1, 0.01),
                                                   voidage=0.95))
     # a remedy the run already has is not offered again
-    assert "wall_images = false" in str(e)
+    assert "pore_neighbours" in str(e)
     done = SimulationError(3, 0.1, 5, "x", position=(0.1, 0.01), voidage=0.18,
-                           set_up=("no_wall_images",))
-    assert "wall_images = false" not in str(done) and "eps_floor = 0.8" in str(done)
+                           set_up=("all_neighbours",))
+    assert "pore_neighbours" not in str(done) and "eps_floor = 0.8" in str(done)
     assert "Packed beds" not in str(SimulationError(3, 0.1, 5, "x", position=(0.1, 0.01),
                                                     voidage=0.18, set_up=("floored",)))
 
@@ -395,3 +395,25 @@ def test_setup_sets_jax_x64_to_the_runs_precision_both_ways():
         assert jnp.asarray(1.0).dtype == jnp.float32
     finally:
         jax.config.update("jax_enable_x64", prev)
+
+
+def test_an_h_past_the_cut_off_grows_the_reach_to_the_h_reached_and_the_wall_rows_with_it():
+    """grow after h outgrew the cut-off: the cut-off (and h_margin) by at least 1.25, or
+    to 1.1 × the kernel support of the largest h the chunk reached (water running into a
+    bed's pores grows its h in steps), and the wall rows' width, set once at set-up, by
+    the square of that factor: with the width left as it was, the wider reach overflowed
+    the wall rows at every redo (the flush of examples/sediment_flushing.toml regrew 12
+    times at one step and stopped)."""
+    phys, params = setup(cases.build("dam_break", dx=0.02))
+    st = init.init_state(cases.build("dam_break", dx=0.02), phys,
+                         params.as_arrays(stages.dtype(phys)))
+    nb = phys.neighbors
+    assert nb.wall_width > 0
+    for h_reached, factor in ((0.5 * nb.r_cut, 1.25), (1.0 * nb.r_cut, 2.2)):
+        f = st.fluid
+        failed = st.replace(fluid=f.replace(h=f.h.at[0].set(h_reached)),
+                            status=st.status.replace(h_exceeded=jnp.asarray(True)))
+        grown = driver.grow(phys, failed)
+        assert grown.neighbors.r_cut == pytest.approx(nb.r_cut * factor, rel=1e-6)
+        assert grown.h_margin == pytest.approx(phys.h_margin * factor, rel=1e-6)
+        assert grown.neighbors.wall_width == int(np.ceil(nb.wall_width * factor ** 2))

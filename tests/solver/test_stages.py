@@ -702,6 +702,35 @@ def test_shared_pressure_does_the_work_the_mixture_continuity_stores(transport):
 
 
 @x64
+def test_fluid_among_grains_takes_h_from_its_superficial_volume():
+    """With the 'shared' pressure the new level's h is η √max(φ m/(ε'ρ'), Δp² ρ0/ρ') with ε'
+    and ρ' of that level (sph.smoothing_length_among_grains), η = h/Δp of the scene (here
+    1.3), φ = Physics.pore_neighbours: the particles born among the grains keep h0 √(ρ0/ρ)
+    (their mass is ε0 ρ0 Δx²), a clear-water mass put where ε < φ takes h0 √(φ/ε). Off:
+    K37 with ρ."""
+    scene = _pore_scene()
+    phys, p, st = init_x64(scene)
+    assert phys.pore_neighbours == 0.5 and phys.h_over_dp == pytest.approx(1.3, rel=1e-12)
+    f, dt = st.fluid, 1e-5
+    clear = 1000.0 * 0.001 ** 2
+    wet = np.asarray(st.fpi.eps) < 0.4
+    st = st.replace(fluid=f.replace(mass=jnp.where(jnp.asarray(wet), clear, f.mass)))
+    fam = stages.sph_family(phys, st)
+    rho_c = stages._all(st, st.fpi.eps * st.fluid.rho, "rho")
+    lvl = stages.new_level(phys, p, st, fam, rho_c, dt)
+    eps, rho, m = np.asarray(lvl.eps), np.asarray(lvl.rho), np.asarray(st.fluid.mass)
+    want = 1.3 * np.sqrt(np.maximum(0.5 * m / (eps * rho), 0.001 ** 2 * 1000.0 / rho))
+    np.testing.assert_allclose(np.asarray(lvl.h), want, rtol=1e-12)
+    grown = np.asarray(lvl.h) > 1.05 * 0.0013
+    assert grown.sum() >= 3 and np.all(wet[grown])         # only the heavy pore water
+    off = dataclasses.replace(phys, pore_neighbours=0.0)
+    lvl = stages.new_level(off, p, st, stages.sph_family(off, st), rho_c, dt)
+    drho = (np.asarray(lvl.rho) - np.asarray(st.fluid.rho)) / dt
+    k37 = np.asarray(st.fluid.h) * (1 - dt * drho / (2 * np.asarray(st.fluid.rho)))
+    np.testing.assert_allclose(np.asarray(lvl.h), k37, rtol=1e-12)
+
+
+@x64
 def test_transport_continuity_moves_the_mixture_flux_with_the_drift():
     """With the 'shared' pressure the option puts the fluid's drift velocity v + δv_XSPH
     into the mixture's flux J = ε ũ + (1 − ε) v̄. Hand value: fluid at v = 0 drifting
