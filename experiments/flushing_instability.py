@@ -5,7 +5,8 @@ one setting changed at a time.
     python experiments/flushing_instability.py unfloored.toml results/flush.h5
 
 ``unfloored.toml`` is examples/sediment_flushing.toml with ``voidage = "area"``,
-``fpi_pressure = "shared"`` and no ``eps_floor``. Each variant restarts from the file's last
+``fpi_pressure = "shared"``, no ``eps_floor`` and ``pore_neighbours = 0`` (h fixed to the
+density; with the default 0.5 the flush runs its 0.6 s). Each variant restarts from the file's last
 checkpoint and runs ``--steps`` steps (of its own step; ``dt_fraction`` scales it) and
 reports whether it stays finite; writes experiments/results/flushing_instability.json.
 """

@@ -3,6 +3,7 @@ grains' wall images (docs/physics.md, Packed beds: what grows where the unfloore
 goes unstable with the images).
 
     fpsi run unfloored.toml --out flush.h5                  # stops with exit 3 at ~0.48 s
+                                       # (the example with [physics] pore_neighbours = 0)
     fpsi run unfloored_noimg.toml --out flush_noimg.h5      # the same, wall_images = false
     python experiments/flushing_stiffness.py unfloored.toml flush.h5 flush_noimg.h5 \
         [flush_dt09.h5 --labels "wall images" "no wall images" "wall images, 0.9 of the step"]

@@ -1,8 +1,11 @@
 """Which mode makes a coupled run go unstable: the step's dominant eigenvalue at a state
 of the run, found by power iteration with Jacobian-vector products of one step.
 
-    fpsi run experiments/scenes/dry_bed.toml --out dry.h5      # stops with exit 3 at ~0.30 s
-    python experiments/unstable_mode.py experiments/scenes/dry_bed.toml dry.h5 \\
+    fpsi run dry_bed_h_fixed.toml --out dry.h5      # stops with exit 3 at ~0.30 s
+
+(``dry_bed_h_fixed.toml``: experiments/scenes/dry_bed.toml with ``[physics]
+pore_neighbours = 0``, h fixed to the density; with the default the run completes.)
+    python experiments/unstable_mode.py dry_bed_h_fixed.toml dry.h5 \\
         [--advance 30] [--iterations 40] [--mass-scale 1 4] [--dt-fraction 1 0.5]
 
 From the file's last checkpoint (its last good frame) the script advances ``--advance``

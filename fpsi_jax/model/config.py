@@ -600,7 +600,7 @@ class Physics:
                   "fpi.reaction"]
             m += ["fpi.lubrication"] if self.lubrication else []
             m += ["fpi.added_mass"] if self.added_mass else []
-            m += (["sph.pore_neighbours"] if self.pore_neighbours > 0
+            m += (["sph.pore_neighbours"] if self.pore_neighbours > 0 and self.h_over_dp > 0
                   and self.fpi_pressure is FpiPressure.SHARED else [])
         return tuple(m)
 

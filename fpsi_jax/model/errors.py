@@ -84,8 +84,8 @@ class SimulationError(RuntimeError):
     """A run went unstable. Attributes: step, time, particle, phase, quantity, output,
     position (the particle's (x, y) in the last good frame, or None) and voidage (a fluid
     particle's ε there among grains, else None). ``set_up``: the remedies the run already
-    has ('floored', 'all_neighbours': Physics.pore_neighbours already 1), which the hint
-    then leaves out."""
+    has ('floored'; 'no_pore_h': Physics.pore_neighbours already 1, or a pressure
+    coupling other than 'shared', where it does nothing), which the hint then leaves out."""
 
     def __init__(self, step, t, particle, quantity, phase="fluid", output=None, t_good=None,
                  position=None, voidage=None, set_up=()):
@@ -101,8 +101,8 @@ class SimulationError(RuntimeError):
         hint = ""
         if voidage is not None and voidage < FLOORED_VOIDAGE and "floored" not in set_up:
             hint = "; pore fluid of a packed bed can go unstable (docs/physics.md, Packed beds)"
-            if "all_neighbours" not in set_up:
-                hint += (": [physics] pore_neighbours above its default 0.5 (at most 1) gives "
+            if "no_pore_h" not in set_up:
+                hint += (": a larger [physics] pore_neighbours (default 0.5, at most 1) gives "
                          "the water among the grains a wider kernel")
             hint += (f"; [physics] voidage = \"mapped\" with eps_floor = {FLOORED_VOIDAGE} "
                      "runs it floored, as the seeds did")

@@ -176,7 +176,8 @@ def smoothing_length_among_grains(eta, m, eps, rho, dp, rho0, phi=0.5, variable_
 
         h = η √max(φ V, Δp² ρ0/ρ)     (Δp² when the smoothing length is constant),
 
-    η = h0/Δp of the fluid lattice. The second term is K37 integrated, h = h0 √(ρ0/ρ),
+    η = h0/Δp of the fluid lattice. The second term is K37 integrated from h0 at ρ0,
+    h = h0 √(ρ0/ρ) (a particle that starts at another density takes it at the first step),
     which a clear-water particle (ε = 1, V = Δp² ρ0/ρ) and one born in a bed (m = ε0 ρ0
     Δp², V ≈ Δp² while ε ≈ ε0) keep. Water that runs from clear water into pores of
     voidage ε is spread over V = Δp²/ε: its particles stand Δp/√ε apart and, at a fixed h,

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..model import limits
 from ..model.config import KERNEL_SUPPORT, Physics
+from ..model.options import FpiPressure
 from ..model.errors import (FLOORED_VOIDAGE, Interrupted, ParameterError, SimulationError,
                             fmt, number)
 from ..model.params import Params
@@ -171,8 +172,10 @@ def grow(phys: Physics, failed: State) -> Physics:
             # at least 1.25×, and room for the largest h the chunk reached (past the step
             # that outgrew the cut-off its steps are inexact, but they tell how far h goes:
             # water running into a bed's pores grows its h, Physics.pore_neighbours)
-            grown = max(1.25, 1.1 * KERNEL_SUPPORT * float(np.max(np.asarray(failed.fluid.h)))
-                        / nb.r_cut)
+            # (finite h only, and at most 3×: a chunk that also blew up can end with any h)
+            h = np.asarray(failed.fluid.h, float)
+            h_reached = float(np.max(h, where=np.isfinite(h), initial=0.0))
+            grown = min(3.0, max(1.25, 1.1 * KERNEL_SUPPORT * h_reached / nb.r_cut))
             # and room for the grown reach's neighbours: a disc of radius r_cut holds
             # grown² times as many (the wall rows' width is set, not measured, at a build)
             nb = dataclasses.replace(nb, r_cut=nb.r_cut * grown, wall_width=int(
@@ -268,7 +271,8 @@ def raise_if_unstable(status, dt: float, output: str | None = None,
                 voidage = float(good.fpi.eps[i])
     set_up = () if phys is None else (
         ("floored",) * (phys.eps_floor >= FLOORED_VOIDAGE)
-        + ("all_neighbours",) * (phys.pore_neighbours >= 1.0))
+        + ("no_pore_h",) * (phys.pore_neighbours >= 1.0
+                            or phys.fpi_pressure is not FpiPressure.SHARED))
     raise SimulationError(int(status.step), int(status.step) * dt, i, STATUS_CODES[code],
                           phase=phase, output=output, t_good=t_good, position=position,
                           voidage=voidage, set_up=set_up)

@@ -49,6 +49,20 @@ def test_a_given_pressure_coupling_wins_over_the_default(tmp_path):
     assert Physics.for_scene(sf.scene).fpi_pressure == "archimedes"
 
 
+def test_the_pore_waters_share_of_neighbours_is_read_from_the_physics_table(tmp_path):
+    """[physics] pore_neighbours reaches Physics (default 0.5), with η = h/Δx of the
+    scene's lattice; out of [0, 1] it is refused naming the key."""
+    bed = WATER + '[[grains]]\nname = "g"\nrho = 2650.0\nbox = [0.1, 0.0, 0.2, 0.02]\nd = 0.004\n'
+    phys = Physics.for_scene(compose(tmp_path, bed).scene)
+    assert phys.pore_neighbours == 0.5
+    assert phys.h_over_dp == pytest.approx(float(np.median(
+        compose(tmp_path, bed).scene.fluid.h)) / 0.005, rel=1e-12)
+    sf = compose(tmp_path, bed + "[physics]\npore_neighbours = 0.8\n")
+    assert Physics.for_scene(sf.scene).pore_neighbours == 0.8
+    with pytest.raises(scenefile.FileError, match=r"pore_neighbours"):
+        compose(tmp_path, bed + "[physics]\npore_neighbours = 1.5\n")
+
+
 def test_a_force_probe_on_an_obstacle_reads_that_obstacles_particles(tmp_path):
     """Two obstacles after the tank's walls: the probe's rows are the second one's
     particles (all inside its box) and the step records the force on those rows only."""
