@@ -11,6 +11,7 @@ import os
 import sys
 
 from . import _xla
+from .model.config import H_MARGIN_DEFAULT
 from .model.errors import Interrupted, ParameterError, SimulationError, number
 
 
@@ -178,6 +179,9 @@ def cmd_run(args):
     k = res.regrowth_chunks
     regrew = (f"; {res.regrowth_s:.1f} s recompiling and redoing {k} chunk"
               f"{'s' if k > 1 else ''} whose neighbour lists grew" if k else "")
+    if k and res.physics.has_fluid and res.physics.h_margin > H_MARGIN_DEFAULT + 1e-9:
+        regrew += (f", the SPH cut-off to {res.physics.h_margin:.2f} h0 for a growing "
+                   "smoothing length")
     lists = ([f"{res.rebuilds} SPH"] if res.physics.has_fluid else []) + (
         [f"{res.dem_rebuilds} DEM"] if res.physics.has_solid else [])
     print(f"{scene.name}: {res.n_steps} steps of {float(res.params.dt):.4g} s{sub}, "

@@ -134,6 +134,9 @@ def h_over_dp(scene) -> float:
                  / float(scene.params.sph.dp))
 
 
+#: the neighbour cut-off's room for h over the start's largest (Physics.h_margin)
+H_MARGIN_DEFAULT = 1.05
+
 #: scene-file and builder keywords whose Physics option has another name
 ALIASES = {"coupling": "fsi"}
 
@@ -396,7 +399,7 @@ class Physics:
     wall_repulsion: bool = True
     wall_range: float = 0.0
     boundary_pressure: BoundaryPressure = BoundaryPressure.FIXED
-    h_margin: float = 1.05
+    h_margin: float = H_MARGIN_DEFAULT
     rho_tolerance: float = 0.3
     x64: bool = False
     n_solid: int = 0
@@ -487,7 +490,7 @@ class Physics:
         rebuild_block = int(opts.pop("rebuild_block", default_rebuild_block()))
         if "sort_fluid" not in opts:
             opts["sort_fluid"] = scene.fluid is not None and scene.fluid.n >= SORT_MIN_FLUID
-        h_margin = float(opts.get("h_margin", 1.05))
+        h_margin = float(opts.get("h_margin", H_MARGIN_DEFAULT))
         if opts.get("dem_substeps", 1) is None:
             opts.pop("dem_substeps")
         method = opts.get("fsi")

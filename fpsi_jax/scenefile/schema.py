@@ -378,7 +378,9 @@ table("physics", False, "Which mechanisms are compiled (Physics options; docs/ph
           "pieces, outgrows the start's lists: each time, the run grows them, recompiles "
           "the step and redoes the chunk (tens of seconds each; the run's summary says "
           "how long). A larger value starts them with more room, at the price of every "
-          "step (each fluid row pays for its slots)", lo=1.0, hi=10.0),
+          "step (each fluid row pays for its slots); a smoothing length that grows past "
+          "the lists' reach (water running into a bed's pores: docs/physics.md, Packed "
+          "beds) regrows them whatever this value", lo=1.0, hi=10.0),
       Key("rho_tolerance", "float", "", 0.3, "stop when |ρ/ρ0 − 1| exceeds this", lo=0.0,
           lo_open=True))
 
