@@ -169,15 +169,14 @@ def grow(phys: Physics, failed: State) -> Physics:
     if phys.has_fluid:
         nb = phys.neighbors
         if bool(failed.status.h_exceeded):
-            # at least 1.25×, and room for the largest h the chunk reached (past the step
-            # that outgrew the cut-off its steps are inexact, but they tell how far h goes:
-            # water running into a bed's pores grows its h, Physics.pore_neighbours)
-            # (finite h only, and at most 3×: a chunk that also blew up can end with any h)
+            # Room for the largest finite h the chunk reached (its steps past the one that
+            # outgrew the cut-off are inexact but tell how far h goes: water running into a
+            # bed's pores, Physics.pore_neighbours), at least 1.25× and at most 3× (a chunk
+            # that also blew up can end with any h). The wall rows' width, set at set-up,
+            # grows with the reach's area: the wider reach would overflow it at every redo.
             h = np.asarray(failed.fluid.h, float)
             h_reached = float(np.max(h, where=np.isfinite(h), initial=0.0))
             grown = min(3.0, max(1.25, 1.1 * KERNEL_SUPPORT * h_reached / nb.r_cut))
-            # and room for the grown reach's neighbours: a disc of radius r_cut holds
-            # grown² times as many (the wall rows' width is set, not measured, at a build)
             nb = dataclasses.replace(nb, r_cut=nb.r_cut * grown, wall_width=int(
                 math.ceil(nb.wall_width * grown ** 2)) if nb.wall_width else nb.wall_width)
             phys = dataclasses.replace(phys, h_margin=phys.h_margin * grown)

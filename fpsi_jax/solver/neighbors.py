@@ -699,12 +699,7 @@ def grow(cfg: NeighborConfig, nbrs: partition.NeighborList, need=(0, 0, 0),
     wall_need = max(wall_need, _wall_count(cfg, nbrs.idx, nbrs.idx.shape[0]))
     code = int(nbrs.error.code)
     mult = CHEAP_REGROWTH if both else cfg.capacity_multiplier
-    overflow = bool(code & int(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW))
-    # the wall rows' count stops at their width: a list overflow that no row's need
-    # explains, with the wall rows full, is theirs (after the cut-off grew, say)
-    wall_over = bool(cfg.wall_width) and (
-        wall_need > cfg.wall_width
-        or (overflow and 0 < rows_need <= capacity(nbrs) and wall_need >= cfg.wall_width))
+    wall_over = bool(cfg.wall_width) and wall_need > cfg.wall_width
     rows_over = bool(code & int(partition.PartitionErrorCode.NEIGHBOR_LIST_OVERFLOW)) and (
         rows_need > capacity(nbrs) or not wall_over)
     cells_over = bool(code & int(partition.PartitionErrorCode.CELL_LIST_OVERFLOW))
